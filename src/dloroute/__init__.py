@@ -1,0 +1,8 @@
+"""dloroute: hierarchical routing of a rope through clips (MuJoCo, SAC insertion skill, VLM planners)."""
+
+import os
+
+# Headless rendering by default; MuJoCo reads this when it is first imported.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+__version__ = "0.1.0"

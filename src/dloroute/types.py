@@ -58,11 +58,11 @@ class ClipSpec:
 class RopeSpec:
     """Rope model parameters: length (m), radius (m), mass (kg), Young's modulus (Pa), particle count."""
 
-    length: float = 1.0
+    length: float = 1.2
     radius: float = 0.0035
-    mass: float = 0.03
+    mass: float = 0.036
     young: float = 2.0e6
-    n_particles: int = 41
+    n_particles: int = 49
 
     @property
     def spacing(self) -> float:
