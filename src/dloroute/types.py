@@ -60,7 +60,7 @@ class RopeSpec:
 
     length: float = 1.2
     radius: float = 0.0035
-    mass: float = 0.036
+    mass: float = 0.06
     young: float = 2.0e6
     n_particles: int = 49
 
@@ -120,7 +120,8 @@ class ClipStatus:
     ``rope_out``: the rope passes through the tunnel entry-to-exit and the head is past the exit face.
     ``routed``: the rope passes through the tunnel entry-to-exit (the head may be far beyond).
     ``d_floor`` / ``d_ceil``: distance (m) from the head to the centre of the entry / exit face.
-    ``signed_distance``: head x minus the exit face's x (m, clip frame); > +0.02 after an insertion = success.
+    ``signed_distance``: the paper's signed endpoint distance (m): +d_ceil when ``rope_out``, else
+    -d_ceil; above +0.02 after an insertion primitive = success.
     ``crossing_index``: arc position (in particles, fractional) where the rope crosses the tunnel, or None.
     """
 

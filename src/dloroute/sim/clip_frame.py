@@ -110,14 +110,16 @@ def clip_status(clip: ClipSpec, rope: np.ndarray) -> ClipStatus:
         ):
             routed = rope_in = True
             crossing = 0.5 * (first[0] + events[1][0])
+    rope_out = bool(routed and head[0] > CLIP_DEPTH / 2)
+    d_ceil = float(np.linalg.norm(head - exit_))
     return ClipStatus(
         name=clip.name,
         rope_in=rope_in,
-        rope_out=bool(routed and head[0] > CLIP_DEPTH / 2),
+        rope_out=rope_out,
         routed=routed,
         d_floor=float(np.linalg.norm(head - entry)),
-        d_ceil=float(np.linalg.norm(head - exit_)),
-        signed_distance=float(head[0] - CLIP_DEPTH / 2),
+        d_ceil=d_ceil,
+        signed_distance=d_ceil if rope_out else -d_ceil,
         crossing_index=None if crossing is None else float(crossing),
     )
 

@@ -36,6 +36,8 @@ MAX_YAW_RATE = 2.0
 """Gripper rotation speed limit (rad/s)."""
 MAX_PARTICLE_SPEED = 5.0
 """A rope particle faster than this (m/s) means the simulation blew up."""
+MAX_TWIST_RATE = 500.0
+"""A rope twist (hinge) degree of freedom faster than this (rad/s) means the simulation blew up."""
 CONTROL_STEPS = 4
 """Physics steps between two gripper set-points and guard checks."""
 
@@ -122,6 +124,8 @@ class Physics:
         self._mocap = int(self.model.body("gripper").mocapid[0])
         self._grasp_eq = [int(self.model.equality(f"grasp{k}").id) for k in range(2)]
         self.grasped: int | None = None
+        slide = self.model.jnt_type[self.model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE
+        self._slide_dofs, self._hinge_dofs = np.flatnonzero(slide), np.flatnonzero(~slide)
         # Clip footprints for the vectorised guards: centre, yaw, half extents (m, clip frame).
         clips = scene.clips
         self._clip_xy = np.array([[c.x, c.y] for c in clips]).reshape(-1, 2)
@@ -185,9 +189,13 @@ class Physics:
             raise UnstableSimulation(f"non-finite state at t = {d.time:.3f} s")
         if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
             raise UnstableSimulation(f"MuJoCo reported a bad acceleration at t = {d.time:.3f} s")
-        speed = np.abs(d.qvel).max(initial=0.0)
-        if speed > MAX_PARTICLE_SPEED:
-            raise UnstableSimulation(f"rope velocity {speed:.1f} m/s exceeds {MAX_PARTICLE_SPEED} m/s at t = {d.time:.3f} s")
+        speed = np.abs(d.qvel[self._slide_dofs]).max(initial=0.0)
+        twist = np.abs(d.qvel[self._hinge_dofs]).max(initial=0.0)
+        if speed > MAX_PARTICLE_SPEED or twist > MAX_TWIST_RATE:
+            raise UnstableSimulation(
+                f"rope velocity {speed:.1f} m/s or twist rate {twist:.0f} rad/s beyond the limits "
+                f"({MAX_PARTICLE_SPEED} m/s, {MAX_TWIST_RATE} rad/s) at t = {d.time:.3f} s"
+            )
         hit = self.penetrated_clip()
         if hit is not None:
             raise Penetration(f"the rope passed through the solid part of clip {hit!r} at t = {d.time:.3f} s")

@@ -105,6 +105,7 @@ class SceneRenderer:
             self._renderers[key] = mujoco.Renderer(self.physics.model, height=cam.rows, width=cam.width)
         r = self._renderers[key]
         self.physics.model.cam_pos[self._cam] = (cam.cx, cam.cy, cam.height)
+        mujoco.mj_kinematics(self.physics.model, self.physics.data)  # positions only: stepping is unaffected
         mujoco.mj_camlight(self.physics.model, self.physics.data)
         r.update_scene(self.physics.data, camera=self._cam)
         return r.render().copy()
