@@ -20,13 +20,14 @@ import os
 import time
 import traceback
 from collections import deque
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -37,6 +38,7 @@ from rich.progress import (
 )
 
 from dloroute.eval.suites import TABLE_I_CLIP_SCALE, Job, Row, record_key
+from dloroute.sim.scene import generate_scene
 
 JobFn = Callable[[Job], Mapping[str, Any]]
 DEFAULT_EPISODE_FN = "dloroute.routing.episode:run_episode"
@@ -64,8 +66,6 @@ class RoutingEpisode:
     episode_fn: str | Callable[[Any, Any], Any] = DEFAULT_EPISODE_FN
 
     def __call__(self, job: Job) -> Mapping[str, Any]:
-        from dloroute.sim.scene import generate_scene
-
         scene = generate_scene(job.family, job.seed)
         config = resolve(self.make_config)(job.row, job.family, job.seed, self.run_dir)
         return resolve(self.episode_fn)(scene, config).to_dict()
@@ -113,6 +113,21 @@ def repair(path: Path) -> int:
     return torn
 
 
+def drop_errors(path: Path) -> int:
+    """Rewrite a JSONL run file without its error records (atomically); returns how many were dropped."""
+    path = Path(path)
+    records = read_records(path)
+    kept = [r for r in records if r.get("termination") != "error"]
+    if len(kept) < len(records):
+        tmp = path.with_name(path.name + ".tmp")
+        with tmp.open("w", encoding="utf-8") as f:
+            f.writelines(json.dumps(r) + "\n" for r in kept)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    return len(records) - len(kept)
+
+
 def _scan(path: Path) -> tuple[list[dict[str, Any]], int]:
     """Parse ``path``: its complete records and the byte length they span. Text after the final newline and a
     last line that is not valid JSON are a torn write; a bad line before the last raises ``ValueError``."""
@@ -140,15 +155,19 @@ def run_suite(
     workers: int,
     episode_fn: JobFn,
     progress: bool = True,
+    retry_errors: bool = False,
 ) -> RunStats:
     """Run every job not yet recorded in ``out_jsonl`` on ``workers`` processes, appending one record per
-    episode. ``episode_fn`` is a job function (see the module docstring)."""
+    episode. ``episode_fn`` is a job function (see the module docstring). ``retry_errors`` first removes the
+    file's error records, so their jobs run again (e.g. after fixing a missing policy file)."""
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     out_jsonl = Path(out_jsonl)
     out_jsonl.parent.mkdir(parents=True, exist_ok=True)
     repair(out_jsonl)
-    jobs = list(jobs)
+    if retry_errors:
+        drop_errors(out_jsonl)
+    jobs = list({j.key: j for j in jobs}.values())  # a job listed twice still runs once
     keys = {j.key for j in jobs}
     done = {record_key(r): bool(r.get("success")) for r in read_records(out_jsonl)}
     queue = deque(j for j in jobs if j.key not in done)
@@ -170,7 +189,7 @@ def run_suite(
             counts["ok"] += success
             if error:
                 counts["errors"] += 1
-                bar.console.log(f"[red]error[/red] {error}")
+                bar.console.log(f"[red]error[/red] {escape(error)}")
             bar.update(task, advance=1, ok=_ok_text(counts["ok"], skipped + counts["ran"]))
 
         while queue:
@@ -214,7 +233,7 @@ def _run_job(episode_fn: JobFn, job: Job) -> tuple[str, bool, str | None]:
         result = dict(episode_fn(job))
         record = {**result, **job.fields(), "wall_time": result.get("wall_time", time.perf_counter() - start)}
         return json.dumps(record, default=_to_json), bool(record.get("success")), None
-    except Exception as exc:  # noqa: BLE001 - an episode's failure must not stop the suite
+    except Exception as exc:  # an episode's failure must not stop the suite
         return _error_record(job, f"{type(exc).__name__}: {exc}", time.perf_counter() - start,
                              traceback.format_exc())
 

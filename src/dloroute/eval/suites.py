@@ -12,9 +12,9 @@ resumed, and names its video.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from collections.abc import Iterable
 
 from dloroute.types import FAMILIES
 
