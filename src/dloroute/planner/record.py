@@ -127,7 +127,9 @@ class CallRecorder:
 
     def _scrub(self, node: Any) -> Any:
         if isinstance(node, dict):
-            return {k: REDACTED if _CREDENTIAL_KEY.search(str(k)) else self._scrub(v) for k, v in node.items()}
+            return {
+                k: REDACTED if _CREDENTIAL_KEY.search(str(k)) else self._scrub(v) for k, v in node.items()
+            }
         if isinstance(node, list):
             return [self._scrub(v) for v in node]
         if isinstance(node, str):
@@ -158,7 +160,9 @@ class ReplayClient:
 
     def complete(self, request: dict[str, Any]) -> ChatAnswer:
         if self._next >= len(self._records):
-            raise ReplayMismatch(f"the recording has only {len(self._records)} calls; call #{self._next} asked")
+            raise ReplayMismatch(
+                f"the recording has only {len(self._records)} calls; call #{self._next} asked"
+            )
         rec = self._records[self._next]
         self._next += 1
         if rec["fingerprint"] != fingerprint(request):

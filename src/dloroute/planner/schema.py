@@ -89,7 +89,9 @@ def parse_decision(text: str, clip_names: Sequence[str], allowed_skills: Sequenc
     if model.skill is None or model.target_clip is None:
         raise AnswerError("task_done is false, so skill and target_clip must both be given (not null)")
     if model.skill not in allowed_skills:
-        raise AnswerError(f"skill {model.skill!r} is not allowed; allowed skills: {', '.join(allowed_skills)}")
+        raise AnswerError(
+            f"skill {model.skill!r} is not allowed; allowed skills: {', '.join(allowed_skills)}"
+        )
     clip = _known_clip(model.target_clip, clip_names)
     return Decision(call=SkillCall(skill=model.skill, clip=clip), reasoning=model.reasoning)
 
@@ -126,7 +128,9 @@ def _validate(model: type[_Strict], text: str | None) -> Any:
     try:
         raw = json.loads(body)
     except json.JSONDecodeError as e:
-        raise AnswerError(f"the answer is not valid JSON ({e.msg} at line {e.lineno} column {e.colno})") from e
+        raise AnswerError(
+            f"the answer is not valid JSON ({e.msg} at line {e.lineno} column {e.colno})"
+        ) from e
     if not isinstance(raw, dict):
         raise AnswerError(f"the answer must be a JSON object, not {type(raw).__name__}")
     try:

@@ -22,7 +22,14 @@ Variant = Literal["failure_reasoning", "no_failure_reasoning"]
 
 VARIANT_PARTS: dict[Variant, tuple[str, ...]] = {
     "failure_reasoning": (
-        "system", "task", "scene", "skills", "skill_flatten", "reasoning", "criteria", "failure_reasoning",
+        "system",
+        "task",
+        "scene",
+        "skills",
+        "skill_flatten",
+        "reasoning",
+        "criteria",
+        "failure_reasoning",
     ),
     "no_failure_reasoning": ("system", "task", "scene", "skills", "reasoning", "criteria"),
 }
