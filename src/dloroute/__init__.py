@@ -6,3 +6,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
+
+import gymnasium as _gym
+
+_gym.register(id="dloroute/ClipInsert-v0", entry_point="dloroute.skills.insert_env:ClipInsertEnv")

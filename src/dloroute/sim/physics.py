@@ -9,6 +9,7 @@ All positions are metres in the world frame; yaws are radians about +z.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from importlib import resources
@@ -22,14 +23,14 @@ from dloroute.sim.clip_frame import (
     CLIP_HEIGHT,
     POST_WIDTH,
     opening_width,
-    to_clip_frame,
 )
 from dloroute.types import ClipSpec, SceneSpec
 
 ROOF_THICKNESS = 0.008
 """Roof thickness (m); the opening is CLIP_HEIGHT - ROOF_THICKNESS high."""
-FINGER_HALF = (0.009, 0.013)
-"""Half extents (m, gripper frame x, y) of the fingers' footprint on the table; 2.6 cm across."""
+FINGER_HALF = (0.005, 0.013)
+"""Half extents (m, gripper frame x, y) of the fingers' footprint on the table: 1 cm along the rope,
+2.6 cm across it (wider than the clip's opening)."""
 MAX_SPEED = 0.12
 """Gripper translation speed limit (m/s)."""
 MAX_YAW_RATE = 2.0
@@ -124,6 +125,8 @@ class Physics:
         self._mocap = int(self.model.body("gripper").mocapid[0])
         self._grasp_eq = [int(self.model.equality(f"grasp{k}").id) for k in range(2)]
         self.grasped: int | None = None
+        self.observers: list[Callable[[Physics], None]] = []
+        """Called after every CONTROL_STEPS physics steps (e.g. a video recorder)."""
         slide = self.model.jnt_type[self.model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE
         self._slide_dofs, self._hinge_dofs = np.flatnonzero(slide), np.flatnonzero(~slide)
         # Clip footprints for the vectorised guards: centre, yaw, half extents (m, clip frame).
@@ -176,6 +179,8 @@ class Physics:
             k = min(n, CONTROL_STEPS)
             mujoco.mj_step(self.model, self.data, nstep=k)
             self.check()
+            for observer in self.observers:
+                observer(self)
             n -= k
 
     def settle(self, duration: float = 0.4) -> None:
@@ -256,7 +261,8 @@ class Physics:
         """Place the gripper on particle ``index`` (fingers across the rope) and attach it.
 
         Returns the name of a clip the fingers would collide with there (nothing is attached then).
-        The particle and its tail-side neighbour are both held, so the gripper also holds the rope's yaw.
+        The particle and its head-side neighbour are both held, so the gripper also holds the yaw of the
+        segment that leads towards the head.
         """
         n = len(self._particles)
         if not 0 <= index < n:
@@ -268,7 +274,7 @@ class Physics:
         if hit is not None:
             return hit
         self._set_gripper(p[index, 0], p[index, 1], yaw, z=p[index, 2])
-        other = index + 1 if index + 1 < n else index - 1
+        other = index - 1 if index > 0 else 1  # the head-side neighbour: it steers the free front segment
         c, s = math.cos(yaw), math.sin(yaw)
         for eq, vertex in zip(self._grasp_eq, (index, other)):
             rel = p[vertex] - p[index]

@@ -115,7 +115,7 @@ class SceneRenderer:
             r.close()
         self._renderers.clear()
 
-    def __enter__(self) -> "SceneRenderer":
+    def __enter__(self) -> SceneRenderer:
         return self
 
     def __exit__(self, *exc) -> None:

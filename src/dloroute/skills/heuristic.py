@@ -6,8 +6,8 @@
 
 from __future__ import annotations
 
-from dloroute.skills.primitives import InsertParams, insert
 from dloroute.sim.physics import Physics
+from dloroute.skills.primitives import InsertParams, insert
 from dloroute.types import ClipSpec, SkillResult
 
 PLACE_X = -0.05

@@ -32,6 +32,9 @@ APPROACH_X = -0.075
 """Clip-frame x (m) where Pull and Flatten leave the head: in front of the entry face, on the axis."""
 SETTLE_TIME = 0.3
 """Rest (s) after a release before the rope is measured."""
+AXIAL_STROKE = 0.12
+"""Length (m) of the last stroke of Pull and Flatten, along the target's axis: the rope trailing the head
+lines up with the axis over this length."""
 DETOUR = 0.11
 """Lateral offset (m, clip frame) of the via points that lead the gripper around a clip."""
 
@@ -48,7 +51,7 @@ class InsertParams:
     via: tuple[tuple[float, float, float], tuple[float, float, float]]
 
     @classmethod
-    def from_action(cls, action: np.ndarray) -> "InsertParams":
+    def from_action(cls, action: np.ndarray) -> InsertParams:
         """Scale a policy action in [-1, 1]^7 to parameters (see ClipInsert-v0's action table)."""
         a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
         index = int(round((a[0] + 1) / 2 * (GRASP_INDICES - 1)))
@@ -88,30 +91,40 @@ def insert(physics: Physics, clip: ClipSpec, params: InsertParams) -> SkillResul
     return _finish(physics, "insert", clip, hit, t0)
 
 
-def _clear(physics: Physics, a: np.ndarray, b: np.ndarray, margin: float = 0.025) -> bool:
-    """True when the straight gripper path a -> b (world xy, m) keeps ``margin`` from every clip."""
+def _clear(physics: Physics, a: np.ndarray, b: np.ndarray, margin: float = 0.025, clips=None) -> bool:
+    """True when the straight gripper path a -> b (world xy, m) keeps ``margin`` from the clips (all by
+    default)."""
     for s in np.linspace(0.0, 1.0, 25):
         p = a + s * (b - a)
-        for c in physics.scene.clips:
+        for c in physics.scene.clips if clips is None else clips:
             if np.hypot(p[0] - c.x, p[1] - c.y) < margin + 0.03:
                 return False
     return True
 
 
 def _path_to_approach(physics: Physics, start: np.ndarray, target: ClipSpec) -> list[np.ndarray]:
-    """World xy via points from ``start`` to the target's approach point avoiding clips.
+    """World xy via points from ``start`` to the target's approach point, avoiding clips.
 
-    Tries the direct line, then detours around the target clip's left or right side.
+    The last stroke runs along the target's axis for up to AXIAL_STROKE (shorter where another clip
+    lies on the axis). Tries the direct line to that stroke, then detours around the target's sides.
     """
     goal = to_world_frame(target, np.array([APPROACH_X, 0.0]))
-    far = to_world_frame(target, np.array([APPROACH_X - 0.06, 0.0]))
+    others = [c for c in physics.scene.clips if c.name != target.name]
+    stroke = AXIAL_STROKE
+    while stroke > 0.0:
+        far = to_world_frame(target, np.array([APPROACH_X - stroke, 0.0]))
+        if _clear(physics, far, goal, clips=others):
+            break
+        stroke -= 0.02
+    far = to_world_frame(target, np.array([APPROACH_X - max(stroke, 0.0), 0.0]))
+    side_x = APPROACH_X - max(stroke, 0.0)
     candidates = [[far, goal]]
     for side in (1.0, -1.0):
         candidates.append([to_world_frame(target, np.array([0.0, side * DETOUR])),
-                           to_world_frame(target, np.array([APPROACH_X - 0.06, side * DETOUR * 0.6])), far, goal])
+                           to_world_frame(target, np.array([side_x, side * DETOUR * 0.6])), far, goal])
         candidates.append([to_world_frame(target, np.array([0.08, side * DETOUR])),
                            to_world_frame(target, np.array([-0.02, side * DETOUR])),
-                           to_world_frame(target, np.array([APPROACH_X - 0.06, side * DETOUR * 0.6])), far, goal])
+                           to_world_frame(target, np.array([side_x, side * DETOUR * 0.6])), far, goal])
 
     def ok(path):
         pts = [start, *path]
