@@ -39,6 +39,9 @@ MAX_PARTICLE_SPEED = 5.0
 """A rope particle faster than this (m/s) means the simulation blew up."""
 MAX_TWIST_RATE = 500.0
 """A rope twist (hinge) degree of freedom faster than this (rad/s) means the simulation blew up."""
+STALL_LAG = 0.008
+"""Distance (m) between the gripper and the particle it holds at which the motion stops: the rope is
+jammed (e.g. the head pushed into a post) and a force-limited arm would stall rather than crush it."""
 CONTROL_STEPS = 4
 """Physics steps between two gripper set-points and guard checks."""
 
@@ -57,10 +60,12 @@ class Penetration(SimulationError):
 
 @dataclass(frozen=True)
 class MotionResult:
-    """Outcome of a gripper motion: ``collision`` names the clip the fingers touched, if any."""
+    """Outcome of a gripper motion: ``collision`` names the clip the fingers touched, if any;
+    ``stalled`` says the rope jammed and the gripper stopped early (see STALL_LAG)."""
 
     collision: str | None
     sim_time: float
+    stalled: bool = False
 
 
 def clip_element(clip: ClipSpec) -> ET.Element:
@@ -192,8 +197,9 @@ class Physics:
         d = self.data
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             raise UnstableSimulation(f"non-finite state at t = {d.time:.3f} s")
-        if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
-            raise UnstableSimulation(f"MuJoCo reported a bad acceleration at t = {d.time:.3f} s")
+        for kind in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC):
+            if d.warning[kind].number > 0:  # MuJoCo resets the state after these: the run is void
+                raise UnstableSimulation(f"MuJoCo detected a non-finite or huge state ({kind.name}) at t = {d.time:.3f} s")
         speed = np.abs(d.qvel[self._slide_dofs]).max(initial=0.0)
         twist = np.abs(d.qvel[self._hinge_dofs]).max(initial=0.0)
         if speed > MAX_PARTICLE_SPEED or twist > MAX_TWIST_RATE:
@@ -285,6 +291,14 @@ class Physics:
         self.grasped = index
         return None
 
+    def grasp_lag(self) -> float:
+        """Distance (m, table plane) from the gripper to the particle it holds; 0 when nothing is held."""
+        if self.grasped is None:
+            return 0.0
+        pos = self.data.mocap_pos[self._mocap]
+        held = self.data.xpos[self._particles[self.grasped]]
+        return float(np.hypot(pos[0] - held[0], pos[1] - held[1]))
+
     def release(self) -> None:
         for eq in self._grasp_eq:
             self.data.eq_active[eq] = 0
@@ -310,5 +324,8 @@ class Physics:
                     return MotionResult(collision=hit, sim_time=self.time - t0)
                 self._set_gripper(x, y, a)
                 self.step(CONTROL_STEPS)
+                if self.grasp_lag() > STALL_LAG:
+                    self._set_gripper(*self.rope()[self.grasped, :2], a)
+                    return MotionResult(collision=None, sim_time=self.time - t0, stalled=True)
             x0, y0, a0 = x1, y1, a0 + da
         return MotionResult(collision=None, sim_time=self.time - t0)

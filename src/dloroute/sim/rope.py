@@ -51,7 +51,7 @@ def rope_element(spec: RopeSpec, head_xy: tuple[float, float], yaw: float) -> ET
     ET.SubElement(el, "elasticity", young=str(spec.young), poisson="0", damping="0.0002")
     ET.SubElement(
         el, "contact", condim="3", friction="0.5 0.005 0.0001", margin="0.001", selfcollide="none",
-        solref="0.004 1", solimp="0.95 0.99 0.001",
+        solref="0.004 1", solimp="0.99 0.999 0.0005",
     )
     return el
 
