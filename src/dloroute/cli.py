@@ -22,7 +22,7 @@ def train_insert(
     bend_probability: float = typer.Option(0.5, help="Share of episodes starting from a curved rope (0 = paper)."),
     curriculum_steps: int = typer.Option(1600, help="Steps at clip scale U(1.0, 2.2) before U(0.9, 1.5)."),
     learning_starts: int = typer.Option(300, help="Random-action steps before learning."),
-    gradient_steps: int = typer.Option(1, help="Gradient steps per vectorised environment step."),
+    gradient_steps: int = typer.Option(2, help="Gradient steps per vectorised environment step."),
     gamma: float = typer.Option(0.9, help="Discount factor."),
     out: Path = typer.Option(Path("runs/train_insert"), help="Run folder (TensorBoard logs, weights, card)."),
     install: bool = typer.Option(False, help="Copy the exported actor and card into the package as the shipped policy."),

@@ -62,7 +62,7 @@ class RopeSpec:
     length: float = 1.2
     radius: float = 0.0035
     mass: float = 0.06
-    young: float = 2.0e6
+    young: float = 2.0e5
     n_particles: int = 49
 
     @property

@@ -19,6 +19,8 @@ from dloroute.types import ClipSpec, ClipStatus, RopeSpec, SceneSpec
 
 N_OBS = 16
 """Front particles in the observation."""
+OBS_SCALE = 10.0
+"""Particle coordinates enter the observation in decimetres (x 10), so the network sees values of order 1."""
 MAX_PRIMITIVES = 7
 """Insert primitives per episode (paper, Sec. IV-B)."""
 BETA, GAMMA, ETA = -2.0, -0.001, 0.5
@@ -33,7 +35,7 @@ INSERT_ROPE = RopeSpec(length=0.6, n_particles=25, mass=0.03)
 def observation_vector(clip: ClipSpec, rope: np.ndarray, rope_in: bool, primitives: int) -> np.ndarray:
     """The policy's observation from world particles (n, 2|3) (see the class docstring's table)."""
     local = to_clip_frame(clip, np.asarray(rope)[:N_OBS, :2])
-    local = np.clip(local, -1.0, 1.0)  # the observation space's bounds (m); only far-off particles are clipped
+    local = np.clip(OBS_SCALE * local, -10.0, 10.0)  # dm; only particles over 1 m away are clipped
     return np.concatenate(
         [local.ravel(), [clip.scale, float(rope_in), primitives / MAX_PRIMITIVES]]
     ).astype(np.float32)
@@ -74,7 +76,7 @@ class ClipInsertEnv(gym.Env):
     
     | | |
     |---|---|
-    | Observation | ``Box((2*N_OBS + 3,))``: the front ``N_OBS`` = 16 particles' (x, y) in the clip frame (m, head first), then clip scale, ``rope_in`` (0/1), primitives used / 7 |
+    | Observation | ``Box((2*N_OBS + 3,))``: the front ``N_OBS`` = 16 particles' (x, y) in the clip frame (dm, head first), then clip scale, ``rope_in`` (0/1), primitives used / 7 |
     | Action | ``Box(-1, 1, (7,))``: grasp index (-> particle 0..7), via 1 (x, y, yaw), via 2 (x, y, yaw); x, y scaled to +-0.08 m, yaw to +-pi/2 rad, clip frame |
     | Reward | paper eq. (1)-(3): 0.5 (rope_in + rope_out) + beta collide + gamma t + r_dist + eta r_flat; beta = -2, gamma = -0.001, eta = 0.5 |
     | Termination | success (signed endpoint distance > +2 cm, ``evaluate()``), a gripper-clip collision, or an unstable simulation (``info["error"]``) |
@@ -95,8 +97,8 @@ class ClipInsertEnv(gym.Env):
         self.scale_range = scale_range
         self.bend_probability = bend_probability
         self.render_mode = render_mode
-        high = np.array([1.0] * (2 * N_OBS) + [3.0, 1.0, 1.0], np.float32)
-        low = np.array([-1.0] * (2 * N_OBS) + [0.0, 0.0, 0.0], np.float32)
+        high = np.array([10.0] * (2 * N_OBS) + [3.0, 1.0, 1.0], np.float32)
+        low = np.array([-10.0] * (2 * N_OBS) + [0.0, 0.0, 0.0], np.float32)
         self.observation_space = gym.spaces.Box(low, high, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (7,), np.float32)
         self.physics: Physics | None = None

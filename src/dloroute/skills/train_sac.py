@@ -39,7 +39,7 @@ class TrainConfig:
     learning_rate: float = 3e-4
     gamma: float = 0.9
     """Discount; an insertion episode lasts at most 7 primitives."""
-    gradient_steps: int = 1
+    gradient_steps: int = 2
     """Gradient steps per environment step (per vectorised step: x n_envs)."""
     net_arch: tuple[int, ...] = (256, 256)
     out: str = "runs/train_insert"
