@@ -22,6 +22,7 @@ def train_insert(
     bend_probability: float = typer.Option(0.5, help="Share of episodes starting from a curved rope (0 = paper)."),
     curriculum_steps: int = typer.Option(1600, help="Steps at clip scale U(1.0, 2.2) before U(0.9, 1.5)."),
     learning_starts: int = typer.Option(300, help="Random-action steps before learning."),
+    demo_steps: int = typer.Option(0, help="Scripted-insertion steps put in the replay buffer first (0 = paper's SAC)."),
     gradient_steps: int = typer.Option(2, help="Gradient steps per vectorised environment step."),
     gamma: float = typer.Option(0.9, help="Discount factor."),
     out: Path = typer.Option(Path("runs/train_insert"), help="Run folder (TensorBoard logs, weights, card)."),
@@ -34,7 +35,7 @@ def train_insert(
     from dloroute.skills.train_sac import TrainConfig, train
 
     config = TrainConfig(
-        steps=steps, seed=seed, n_envs=n_envs, bend_probability=bend_probability, curriculum_steps=curriculum_steps, learning_starts=learning_starts,
+        steps=steps, seed=seed, n_envs=n_envs, bend_probability=bend_probability, curriculum_steps=curriculum_steps, learning_starts=learning_starts, demo_steps=demo_steps,
         gradient_steps=gradient_steps, gamma=gamma, out=str(out),
     )
     path = train(config)

@@ -16,7 +16,36 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from dloroute.skills.policy import export_actor
+from dloroute.skills.primitives import GRASP_INDICES, WORKSPACE_HALF
+
+SCRIPTED = np.array([2, -0.08, 0.0, 0.0, -0.016, 0.0, 0.0])
+"""The scripted insertion (grasp index, via 1 x, y, yaw, via 2 x, y, yaw; m, rad, clip frame): grasp 5 cm
+behind the head, line up on the axis 8 cm before the clip, push until the fingers are 1 cm short of it."""
+
+
+def scripted_action(rng: np.random.Generator, noise: float = 0.15) -> np.ndarray:
+    """SCRIPTED as a policy action in [-1, 1]^7, with Gaussian noise (std ``noise``) for variety."""
+    scale = np.array([(GRASP_INDICES - 1) / 2, *[WORKSPACE_HALF, WORKSPACE_HALF, np.pi / 2] * 2])
+    base = SCRIPTED / scale
+    base[0] -= 1.0  # index 0..7 -> [-1, 1]
+    return np.clip(base + rng.normal(0.0, noise, 7), -1.0, 1.0).astype(np.float32)
+
+
+def prefill_demonstrations(model, env, steps: int, rng: np.random.Generator) -> None:
+    """Step every environment with ``scripted_action`` and store the transitions in the replay buffer."""
+    obs = env.reset()
+    for _ in range(steps):
+        actions = np.stack([scripted_action(rng) for _ in range(env.num_envs)])
+        new_obs, rewards, dones, infos = env.step(actions)
+        next_obs = new_obs.copy()
+        for i, done in enumerate(dones):
+            if done:  # the vec env already reset this one: store the true final observation
+                next_obs[i] = infos[i]["terminal_observation"]
+        model.replay_buffer.add(obs, next_obs, actions, rewards, dones, infos)
+        obs = new_obs
 
 
 @dataclass(frozen=True)
@@ -35,6 +64,9 @@ class TrainConfig:
     """Steps with clip scale U(1.0, 2.2) before switching to U(0.9, 1.5)."""
     learning_starts: int = 300
     """Random-action steps before learning starts."""
+    demo_steps: int = 0
+    """Vectorised steps of a noisy scripted insertion stored in the replay buffer before learning (SAC from
+    demonstrations; 0 = the paper's plain SAC). See ``scripted_action``."""
     batch_size: int = 256
     learning_rate: float = 3e-4
     gamma: float = 0.9
@@ -83,6 +115,8 @@ def train(config: TrainConfig, *, progress: bool = True) -> Path:
         device="cpu",
     )
     start = time.time()
+    if config.demo_steps:
+        prefill_demonstrations(model, env, config.demo_steps, np.random.default_rng(config.seed))
     model.learn(total_timesteps=config.steps, callback=Curriculum(), progress_bar=progress)
     wall = time.time() - start
     env.close()
