@@ -26,6 +26,7 @@ def train_insert(
     gradient_steps: int = typer.Option(2, help="Gradient steps per vectorised environment step."),
     gamma: float = typer.Option(0.9, help="Discount factor."),
     out: Path = typer.Option(Path("runs/train_insert"), help="Run folder (TensorBoard logs, weights, card)."),
+    resume: Path | None = typer.Option(None, help="Continue an earlier run folder (checkpoint + replay buffer)."),
     install: bool = typer.Option(False, help="Copy the exported actor and card into the package as the shipped policy."),
 ) -> None:
     """Train the Insert policy with SAC (Stable-Baselines3) and export the actor's weights."""
@@ -36,7 +37,7 @@ def train_insert(
 
     config = TrainConfig(
         steps=steps, seed=seed, n_envs=n_envs, bend_probability=bend_probability, curriculum_steps=curriculum_steps, learning_starts=learning_starts, demo_steps=demo_steps,
-        gradient_steps=gradient_steps, gamma=gamma, out=str(out),
+        gradient_steps=gradient_steps, gamma=gamma, out=str(out), resume=str(resume) if resume else None,
     )
     path = train(config)
     typer.echo(f"actor weights: {path} (card: {path.with_suffix('.json')})")

@@ -39,6 +39,11 @@ INSERT_MAX_HEADING = math.radians(45)
 """Largest angle (rad) between the front segment's heading and the clip's +x for an aligned head."""
 NEAR_RADIUS = 0.15
 """Distance (m) from the clip centre within which a head beside or behind the clip is badly placed."""
+FRONT_CLEARANCE = 0.035
+"""Rule-based planner: Insert only when the rope's front GRASP_SPAN metres keep this distance (m) from every
+other clip's centre (the fingers could grasp it there without touching that clip); otherwise Pull."""
+GRASP_SPAN = 0.075
+"""Arc length (m) from the head where the Insert skill grasps to push (particles 0..3 at 2.5 cm)."""
 RULE_FLATTEN_AFTER = 2
 """Rule-based planner: Flatten after this many failed insertions in a row."""
 SYMBOLIC_FLATTEN_AFTER = 3
@@ -94,6 +99,18 @@ def head_pose(clip: ClipSpec, rope: np.ndarray) -> HeadPose:
     local = to_clip_frame(clip, xy[0])
     heading = yaw_to_clip_frame(clip, math.atan2(front[1], front[0]))
     return HeadPose(float(local[0]), float(local[1]), float(heading))
+
+
+def front_clear(observation: Observation, target: str) -> bool:
+    """True when no clip other than ``target`` lies within FRONT_CLEARANCE of the rope's front GRASP_SPAN."""
+    xy = np.asarray(observation.rope, dtype=float)[:, :2]
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    front = xy[arc <= GRASP_SPAN]
+    return all(
+        np.min(np.hypot(front[:, 0] - c.x, front[:, 1] - c.y)) >= FRONT_CLEARANCE
+        for c in observation.clips
+        if c.name != target
+    )
 
 
 def failures_since_recovery(ctx: PlannerContext) -> int:
@@ -205,7 +222,8 @@ class RuleBasedPlanner:
     1. every clip routed: done if the routed order is the instructed one, else a failed decision (no
        skill can undo a routing); never done while a clip is unrouted;
     2. RULE_FLATTEN_AFTER failed insertions in a row: Flatten;
-    3. head inside the target's opening, or in its insertion-feasible region and aligned: Insert;
+    3. head inside the target's opening, or in its insertion-feasible region and aligned with the rope's
+       front clear of the other clips (``front_clear``): Insert; aligned but not clear: Pull;
     4. head badly placed near the target (in the region but misaligned, or beside/behind the clip) and
        the previous skill was not a Flatten: Flatten;
     5. otherwise Pull toward the target (after the previous clip of the order is routed, or for the
@@ -238,8 +256,10 @@ class RuleBasedPlanner:
         where = _describe(target, pose)
         if ctx.status(target).rope_in:
             return _call("insert", target, f"{where}: the head is inside the opening, insert")
-        if pose.in_region and pose.aligned:
+        if pose.in_region and pose.aligned and front_clear(obs, target):
             return _call("insert", target, f"{where}: in the feasible region and aligned, insert")
+        if pose.in_region and pose.aligned:
+            return _call("pull", target, f"{where}: aligned, but the front still lies in another clip, pull")
         if (pose.in_region or pose.beside_or_behind) and _last_skill(ctx) != "flatten":
             problem = "misaligned" if pose.in_region else "beside or behind the clip"
             return _call("flatten", target, f"{where}: {problem}, flatten")

@@ -9,8 +9,8 @@ All positions are metres in the world frame; yaws are radians about +z.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
 

@@ -8,6 +8,7 @@ TensorBoard logs go to ``<out>/tb``, and the actor's weights are exported with a
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import platform
 import shlex
@@ -76,6 +77,8 @@ class TrainConfig:
     net_arch: tuple[int, ...] = (256, 256)
     out: str = "runs/train_insert"
     """Run folder: TensorBoard logs, the full SB3 checkpoint, the exported actor and its card."""
+    resume: str | None = None
+    """Run folder of an earlier training to continue (its checkpoint and replay buffer), past its curriculum."""
 
 
 def train(config: TrainConfig, *, progress: bool = True) -> Path:
@@ -108,24 +111,40 @@ def train(config: TrainConfig, *, progress: bool = True) -> Path:
                 self.switched = True
             return True
 
-    model = SAC(
-        "MlpPolicy", env, seed=config.seed, learning_rate=config.learning_rate, batch_size=config.batch_size,
-        gamma=config.gamma, learning_starts=config.learning_starts, gradient_steps=config.gradient_steps,
-        policy_kwargs={"net_arch": list(config.net_arch)}, tensorboard_log=str(out / "tb"), verbose=0,
-        device="cpu",
-    )
+    previous = None
+    if config.resume:
+        before = Path(config.resume)
+        model = SAC.load(before / "sac_full.zip", env=env, device="cpu", tensorboard_log=str(out / "tb"))
+        if (before / "replay_buffer.pkl").exists():
+            model.load_replay_buffer(before / "replay_buffer.pkl")
+        previous = json.loads((before / "insert_sac.json").read_text())
+        env.env_method("set_scale_range", 0.9, 1.5)
+    else:
+        model = SAC(
+            "MlpPolicy", env, seed=config.seed, learning_rate=config.learning_rate, batch_size=config.batch_size,
+            gamma=config.gamma, learning_starts=config.learning_starts, gradient_steps=config.gradient_steps,
+            buffer_size=100_000, policy_kwargs={"net_arch": list(config.net_arch)},
+            tensorboard_log=str(out / "tb"), verbose=0, device="cpu",
+        )
     start = time.time()
-    if config.demo_steps:
+    if config.demo_steps and not config.resume:
         prefill_demonstrations(model, env, config.demo_steps, np.random.default_rng(config.seed))
-    model.learn(total_timesteps=config.steps, callback=Curriculum(), progress_bar=progress)
+    model.learn(
+        total_timesteps=config.steps, callback=None if config.resume else Curriculum(), progress_bar=progress,
+        reset_num_timesteps=not config.resume,
+    )
     wall = time.time() - start
     env.close()
     model.save(out / "sac_full")
+    model.save_replay_buffer(out / "replay_buffer.pkl")
     path = out / "insert_sac.npz"
     card = {
         "command": shlex.join(["dloroute", *sys.argv[1:]]),
         "config": dataclasses.asdict(config),
         "wall_time_s": round(wall, 1),
+        "total_steps": int(model.num_timesteps),
+        "total_wall_time_s": round(wall + (previous["total_wall_time_s"] if previous else 0.0), 1),
+        "resumed_from": previous,
         "machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_implementation()} {platform.python_version()}",
         "evaluation": None,
     }
