@@ -104,7 +104,7 @@ def test_rule_pulls_when_head_far() -> None:
 
 def test_rule_flattens_a_misaligned_head_once_then_pulls() -> None:
     planner = started(RuleBasedPlanner(), START)
-    twisted = straight_rope(RED, (-0.05, 0.0), math.radians(90))
+    twisted = straight_rope(RED, (-0.05, 0.0), math.radians(135))  # pointing away from the opening
     assert decide(planner, twisted).call == SkillCall("flatten", "red")
     assert decide(planner, twisted, [step(0, "flatten", "red", True)]).call == SkillCall("pull", "red")
 
@@ -192,7 +192,7 @@ def test_symbolic_flattens_after_three_failed_insertions() -> None:
 
 def test_symbolic_inserts_in_front_regardless_of_heading_else_pulls() -> None:
     planner = started(SymbolicPlanner(), START)
-    twisted = straight_rope(RED, (-0.05, 0.0), math.radians(90))
+    twisted = straight_rope(RED, (-0.05, 0.0), math.radians(135))  # pointing away from the opening
     assert decide(planner, twisted).call == SkillCall("insert", "red")
     assert decide(planner, straight_rope(RED, (-0.4, 0.2))).call == SkillCall("pull", "red")
     assert decide(planner, straight_rope(RED, (0.03, 0.05))).call == SkillCall("pull", "red")

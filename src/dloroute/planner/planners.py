@@ -33,17 +33,17 @@ FRONT_SEGMENT_LENGTH = 0.05
 """Arc length (m) from the head over which the front segment's heading is measured."""
 INSERT_REGION_X = (-0.15, -0.005)
 """Insertion-feasible region: clip-frame x range (m) of the head, in front of (up to just inside) the entry."""
-INSERT_REGION_HALF_Y = 0.06
+INSERT_REGION_HALF_Y = 0.09
 """Insertion-feasible region: largest clip-frame |y| (m) of the head."""
-INSERT_MAX_HEADING = math.radians(45)
+INSERT_MAX_HEADING = math.radians(90)
 """Largest angle (rad) between the front segment's heading and the clip's +x for an aligned head."""
 NEAR_RADIUS = 0.15
 """Distance (m) from the clip centre within which a head beside or behind the clip is badly placed."""
 FRONT_CLEARANCE = 0.035
 """Rule-based planner: Insert only when the rope's front GRASP_SPAN metres keep this distance (m) from every
 other clip's centre (the fingers could grasp it there without touching that clip); otherwise Pull."""
-GRASP_SPAN = 0.075
-"""Arc length (m) from the head where the Insert skill grasps to push (particles 0..3 at 2.5 cm)."""
+GRASP_SPAN = 0.05
+"""Arc length (m) from the head where the Insert skill grasps to push (particles 0..2 at 2.5 cm)."""
 RULE_FLATTEN_AFTER = 2
 """Rule-based planner: Flatten after this many failed insertions in a row."""
 SYMBOLIC_FLATTEN_AFTER = 3

@@ -35,6 +35,9 @@ SETTLE_TIME = 0.3
 AXIAL_STROKE = 0.12
 """Length (m) of the last stroke of Pull and Flatten, along the target's axis: the rope trailing the head
 lines up with the axis over this length."""
+FEED_REACH = 0.12
+"""Pull feeds rope (its first stroke) only when the gripper is within this distance (m) past the exit of the
+last routed clip, near its axis; a head already farther on goes straight to the target."""
 DETOUR = 0.11
 """Lateral offset (m, clip frame) of the via points that lead the gripper around a clip."""
 
@@ -148,8 +151,8 @@ def _first_free_particle(physics: Physics) -> int | None:
 def reposition(physics: Physics, target: ClipSpec, *, away_from: ClipSpec | None, skill: str) -> SkillResult:
     """Grasp near the head and bring the head to ``target``'s approach pose (Pull and Flatten).
 
-    With ``away_from`` (Pull after a clip), the first stroke drags the head 6 cm further out of that clip
-    along its axis, feeding rope through it. Without it (Flatten), the first stroke draws the head back
+    With ``away_from`` (Pull after a clip) and the head just out of it, the first stroke drags the head 6 cm
+    further out along that clip's axis, feeding rope through it. Without it (Flatten), the first stroke draws the head back
     along the target's axis, which straightens the front segment before it is laid in front of the clip.
     The primitive succeeds when it ends without collision with the head in front of the target.
     """
@@ -162,8 +165,9 @@ def reposition(physics: Physics, target: ClipSpec, *, away_from: ClipSpec | None
     x, y, _ = physics.gripper_pose()
     start = np.array([x, y])
     strokes: list[tuple[float, float, float]] = []
-    if away_from is not None:
-        out = to_world_frame(away_from, np.array([to_clip_frame(away_from, start)[0] + 0.06, 0.0]))
+    local = to_clip_frame(away_from, start) if away_from is not None else None
+    if local is not None and 0.0 < local[0] < FEED_REACH and abs(local[1]) < 0.04:  # just out of that clip
+        out = to_world_frame(away_from, np.array([local[0] + 0.06, 0.0]))
         strokes.append((float(out[0]), float(out[1]), away_from.yaw))
         start = out
     path = _path_to_approach(physics, start, target)
