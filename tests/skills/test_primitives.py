@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from conftest import one_clip_scene
+from scene_helpers import one_clip_scene
 from dloroute.sim.clip_frame import clip_status, routed_order, to_clip_frame
 from dloroute.sim.physics import Physics
 from dloroute.skills import primitives
