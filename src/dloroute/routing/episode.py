@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +56,6 @@ class EpisodeConfig:
     """Write an MP4 of the episode here."""
     step_limit: int | None = None
     """Override of ``step_limit(n_clips)``."""
-    extra: dict = field(default_factory=dict)
 
 
 class LowLevel:

@@ -19,7 +19,6 @@ from dloroute.sim.clip_frame import (
     routed_order,
     to_clip_frame,
     to_world_frame,
-    wrap_angle,
 )
 from dloroute.sim.physics import Physics
 from dloroute.types import ClipSpec, SkillResult
@@ -194,9 +193,3 @@ def pull(physics: Physics, target: ClipSpec) -> SkillResult:
 def flatten(physics: Physics, target: ClipSpec) -> SkillResult:
     """Flatten: straighten the front segment and lay it along ``target``'s axis in front of it."""
     return reposition(physics, target, away_from=None, skill="flatten")
-
-
-def heading_error(physics: Physics, clip: ClipSpec, span: int = 3) -> float:
-    """Angle (rad) between the front segment (particle ``span`` -> head) and the clip's axis."""
-    p = physics.rope()
-    return abs(float(wrap_angle(math.atan2(p[0, 1] - p[span, 1], p[0, 0] - p[span, 0]) - clip.yaw)))
