@@ -153,7 +153,12 @@ class Physics:
         return float(self.model.opt.timestep)
 
     def rope(self) -> np.ndarray:
-        """(n, 3) rope particle positions (m, world), head first."""
+        """(n, 3) rope particle positions (m, world), head first, at the current time.
+
+        ``mj_step`` leaves body positions from before its last integration; recomputing the kinematics
+        (positions only) makes them current. Stepping never reads them, so this changes no trajectory.
+        """
+        mujoco.mj_kinematics(self.model, self.data)
         return rope_model.particle_positions(self.data, self._particles)
 
     def rope_velocities(self) -> np.ndarray:
