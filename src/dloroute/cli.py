@@ -192,14 +192,21 @@ def eval_insertion(
     out: Path = typer.Option(Path("runs/table1"), help="Run folder; rerun to resume."),
     workers: int = typer.Option(2, help="Parallel worker processes."),
     scenes: int = typer.Option(100, help="Number of fixed-seed scenes (the paper uses 100)."),
+    perception: str = typer.Option("oracle", help="What the RL policy observes: oracle or image."),
     retry_errors: bool = typer.Option(False, help="Rerun trials recorded as errors."),
 ) -> None:
     """Table I: heuristic vs RL insertion on fixed-seed scenes at clip scale 1.0."""
+    import functools
+
     from dloroute.eval.runner import InsertionTrial
     from dloroute.eval.suites import TABLE_I
+    from dloroute.skills.trial import insertion_trial
 
     suite = TABLE_I.select(vlm_configured=False, seeds=list(TABLE_I.seeds[:scenes]))
-    _run(suite, out, workers, InsertionTrial("dloroute.skills.trial:insertion_trial"), retry_errors)
+    if perception != "oracle":
+        suite = TABLE_I.select(vlm_configured=False, labels=["insert+rl"], seeds=list(TABLE_I.seeds[:scenes]))
+    trial = functools.partial(insertion_trial, perception=perception)
+    _run(suite, out, workers, InsertionTrial(trial), retry_errors)
 
 
 @app.command()

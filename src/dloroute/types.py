@@ -229,7 +229,9 @@ class PlannerContext:
         raise KeyError(name)
 
 
-Termination = Literal["success", "collision", "timeout", "early_termination", "planner_failure", "unstable"]
+Termination = Literal[
+    "success", "collision", "timeout", "early_termination", "planner_failure", "unstable", "perception_failure"
+]
 
 
 @dataclass(frozen=True)

@@ -85,3 +85,16 @@ def test_result_round_trips_to_json(tmp_path):
     write_result(result, tmp_path / "result.json")
     loaded = json.loads((tmp_path / "result.json").read_text())
     assert loaded["success"] and loaded["termination"] == "success" and loaded["routed_order"] == ["red"]
+
+
+def test_unmeasurable_scene_is_perception_failure(monkeypatch):
+    from dloroute.perception import PerceptionError
+
+    def blind(physics, renderer=None):
+        raise PerceptionError("the head is not visible")
+
+    monkeypatch.setattr("dloroute.perception.perceive_physics", blind)
+    config = dataclasses.replace(HEURISTIC, perception="image")
+    result = run_episode(one_clip_scene(), config, planner=Scripted(INSERT, DONE))
+    assert result.termination == "perception_failure" and result.length == 0
+    assert "not visible" in result.steps[-1]["error"]

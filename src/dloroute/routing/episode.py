@@ -4,7 +4,8 @@ An episode succeeds when the planner declares the task done and every clip is ro
 instruction's order. It fails on a gripper-clip collision, at the step limit (timeout), when the planner
 declares done with clips unrouted or out of order (early termination), after ``MAX_FAILED_DECISIONS``
 failed decisions in a row (planner failure), or when the simulation becomes unstable. ``length`` counts
-pick-and-place primitives, as the paper's episode length.
+pick-and-place primitives, as the paper's episode length. With image perception, a scene the perceiver
+cannot measure ends the episode as ``perception_failure``.
 """
 
 from __future__ import annotations
@@ -82,13 +83,23 @@ class LowLevel:
         raise ValueError(f"unknown skill {skill!r}")
 
 
+class PerceptionFailure(RuntimeError):
+    """The perceiver could not measure the scene (e.g. the rope's head left the camera's view)."""
+
+
 def _perceiver(kind: str) -> Callable[[Physics, Any], Observation]:
     if kind == "oracle":
         return lambda physics, _renderer: Observation(clips=physics.scene.clips, rope=physics.rope())
     if kind == "image":
-        from dloroute.perception.segment import perceive_physics
+        from dloroute.perception import PerceptionError, perceive_physics
 
-        return perceive_physics
+        def perceive(physics: Physics, renderer) -> Observation:
+            try:
+                return perceive_physics(physics, renderer)
+            except PerceptionError as err:
+                raise PerceptionFailure(str(err)) from err
+
+        return perceive
     raise ValueError(f"unknown perception {kind!r}; choose oracle or image")
 
 
@@ -162,8 +173,8 @@ def run_episode(
             observation = perceive(physics, renderer)
             if on_step:
                 on_step(record, observation)
-    except SimulationError as err:
-        termination = "unstable"
+    except (SimulationError, PerceptionFailure) as err:
+        termination = "unstable" if isinstance(err, SimulationError) else "perception_failure"
         history.append(StepRecord(step=len(history), decision=Decision(call=None, failed=True, error=str(err)), result=None))
     finally:
         if video:

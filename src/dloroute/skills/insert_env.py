@@ -17,8 +17,10 @@ from dloroute.sim.scene import HEAD_ANGLE, HEAD_RECT
 from dloroute.skills.primitives import InsertParams, insert
 from dloroute.types import ClipSpec, ClipStatus, RopeSpec, SceneSpec
 
-N_OBS = 16
-"""Front particles in the observation."""
+N_OBS = 8
+"""Front particles in the observation (17.5 cm of rope at 2.5 cm spacing): the segment an insertion
+moves. Farther particles in a routed rope curve back to the previous clip, a shape no single-clip
+training scene shows, so they are left out."""
 OBS_SCALE = 10.0
 """Particle coordinates enter the observation in decimetres (x 10), so the network sees values of order 1."""
 MAX_PRIMITIVES = 7
@@ -76,7 +78,7 @@ class ClipInsertEnv(gym.Env):
     
     | | |
     |---|---|
-    | Observation | ``Box((2*N_OBS + 3,))``: the front ``N_OBS`` = 16 particles' (x, y) in the clip frame (dm, head first), then clip scale, ``rope_in`` (0/1), primitives used / 7 |
+    | Observation | ``Box((2*N_OBS + 3,))``: the front ``N_OBS`` = 8 particles' (x, y) in the clip frame (dm, head first), then clip scale, ``rope_in`` (0/1), primitives used / 7 |
     | Action | ``Box(-1, 1, (7,))``: grasp index (-> particle 0..7), via 1 (x, y, yaw), via 2 (x, y, yaw); x, y scaled to +-0.08 m, yaw to +-pi/2 rad, clip frame |
     | Reward | paper eq. (1)-(3): 0.5 (rope_in + rope_out) + beta collide + gamma t + r_dist + eta r_flat; beta = -2, gamma = -0.001, eta = 0.5 |
     | Termination | success (signed endpoint distance > +2 cm, ``evaluate()``), a gripper-clip collision, or an unstable simulation (``info["error"]``) |

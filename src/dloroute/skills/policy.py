@@ -8,6 +8,7 @@ the training command, seed, steps, wall time and the evaluation result.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from dloroute.sim.clip_frame import clip_status
 from dloroute.sim.physics import Physics
 from dloroute.skills.insert_env import MAX_PRIMITIVES, observation_vector
 from dloroute.skills.primitives import InsertParams, insert
-from dloroute.types import ClipSpec, SkillResult
+from dloroute.types import ClipSpec, Observation, SkillResult
 
 SHIPPED = "insert_sac.npz"
 """File name of the shipped weights in ``dloroute/skills/policies``."""
@@ -52,13 +53,22 @@ class InsertPolicy:
             h = np.maximum(w @ h + b, 0.0)
         return np.tanh(self.mu[0] @ h + self.mu[1])
 
-    def insert(self, physics: Physics, clip: ClipSpec, max_primitives: int = MAX_PRIMITIVES) -> SkillResult:
-        """Closed-loop Insert: up to ``max_primitives`` primitives until success or a collision."""
+    def insert(
+        self, physics: Physics, clip: ClipSpec, max_primitives: int = MAX_PRIMITIVES,
+        observe: Callable[[Physics], Observation] | None = None,
+    ) -> SkillResult:
+        """Closed-loop Insert: up to ``max_primitives`` primitives until success or a collision.
+
+        ``observe`` supplies the rope and the clip's pose the policy sees (default: the simulator's state;
+        e.g. ``perceive_physics`` for the image pipeline).
+        """
         result = None
         sim_time = 0.0
         for t in range(max_primitives):
-            status = clip_status(clip, physics.rope())
-            obs = observation_vector(clip, physics.rope(), status.rope_in, t)
+            seen = observe(physics) if observe else Observation(physics.scene.clips, physics.rope())
+            seen_clip = seen.clip(clip.name)
+            status = clip_status(seen_clip, seen.rope)
+            obs = observation_vector(seen_clip, seen.rope, status.rope_in, t)
             result = insert(physics, clip, InsertParams.from_action(self.act(obs)))
             sim_time += result.sim_time
             if result.success or result.collision:

@@ -37,6 +37,9 @@ lines up with the axis over this length."""
 FEED_REACH = 0.12
 """Pull feeds rope (its first stroke) only when the gripper is within this distance (m) past the exit of the
 last routed clip, near its axis; a head already farther on goes straight to the target."""
+RETREAT = 0.07
+"""A gripper starting closer than this (m) to a clip's centre first moves straight away from it to this
+distance, so that the planned path starts clear of the clip."""
 DETOUR = 0.11
 """Lateral offset (m, clip frame) of the via points that lead the gripper around a clip."""
 
@@ -169,6 +172,11 @@ def reposition(physics: Physics, target: ClipSpec, *, away_from: ClipSpec | None
         out = to_world_frame(away_from, np.array([local[0] + 0.06, 0.0]))
         strokes.append((float(out[0]), float(out[1]), away_from.yaw))
         start = out
+    near = [c for c in physics.scene.clips if np.hypot(start[0] - c.x, start[1] - c.y) < RETREAT]
+    if near:  # first step straight away from the clip the head lies against
+        away = start - np.array([near[0].x, near[0].y])
+        start = np.array([near[0].x, near[0].y]) + RETREAT * away / max(np.linalg.norm(away), 1e-9)
+        strokes.append((float(start[0]), float(start[1]), physics.gripper_pose()[2]))
     path = _path_to_approach(physics, start, target)
     for p in path[:-1]:
         strokes.append((float(p[0]), float(p[1]), target.yaw))

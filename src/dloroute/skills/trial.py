@@ -12,10 +12,13 @@ from dloroute.skills.heuristic import heuristic_insert
 from dloroute.skills.insert_env import ClipInsertEnv
 
 
-def insertion_trial(low_level: str, seed: int, scale: float = 1.0, policy_path: str | None = None) -> dict[str, Any]:
+def insertion_trial(
+    low_level: str, seed: int, scale: float = 1.0, policy_path: str | None = None, perception: str = "oracle"
+) -> dict[str, Any]:
     """Success, signed endpoint distance (cm) and primitives used, on the scene of ``seed`` at ``scale``.
 
-    The scene is drawn as in training with the paper's start distribution (no bending).
+    The scene is drawn as in training with the paper's start distribution (no bending). With
+    ``perception="image"`` the RL policy observes the rope and clip measured from rendered images.
     """
     env = ClipInsertEnv(scale_range=(scale, scale))
     env.reset(options={"scene": env.sample_scene(np.random.default_rng(seed), scale)})
@@ -25,7 +28,12 @@ def insertion_trial(low_level: str, seed: int, scale: float = 1.0, policy_path: 
         elif low_level == "rl":
             from dloroute.skills.policy import InsertPolicy
 
-            result = InsertPolicy.load(policy_path).insert(env.physics, env.clip)
+            observe = None
+            if perception == "image":
+                from dloroute.perception import perceive_physics
+
+                observe = perceive_physics
+            result = InsertPolicy.load(policy_path).insert(env.physics, env.clip, observe=observe)
         else:
             raise ValueError(f"unknown low-level policy {low_level!r}; choose rl or heuristic")
     except SimulationError as err:
