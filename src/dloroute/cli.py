@@ -81,6 +81,7 @@ def route(
     vlm_base_url: str | None = typer.Option(None, help="OpenAI-compatible base URL (vLLM, Ollama, ...)."),
     vlm_api_key_env: str = typer.Option("OPENAI_API_KEY", help="Name of the environment variable with the key."),
     vlm_reasoning_effort: str | None = typer.Option(None, help="Reasoning effort for reasoning models (low, ...)."),
+    vlm_replay: Path | None = typer.Option(None, help="Replay the VLM's answers from a recorded vlm_calls folder (offline)."),
     out: Path = typer.Option(Path("runs/route"), help="Folder for episode.mp4, result.json, scene.json."),
     video: bool = typer.Option(True, help="Write the episode video."),
 ) -> None:
@@ -102,7 +103,7 @@ def route(
     vlm = _vlm_config(vlm_model, vlm_base_url, vlm_api_key_env, vlm_reasoning_effort) if planner.startswith("vlm") else None
     config = EpisodeConfig(
         planner=planner, low_level=low_level, perception=perception, policy_path=str(policy) if policy else None,
-        vlm=vlm, record_dir=str(out / "vlm_calls"), video=str(out / "episode.mp4") if video else None,
+        vlm=vlm, record_dir=str(out / "vlm_calls"), replay_dir=str(vlm_replay) if vlm_replay else None, video=str(out / "episode.mp4") if video else None,
     )
 
     def show(record, _observation) -> None:

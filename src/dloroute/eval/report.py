@@ -215,7 +215,7 @@ def _rel(path: Path, start: Path) -> str:
 
 def write_report(run_dir: Path, out_md: Path) -> Path:
     """Write the markdown report of ``run_dir`` to ``out_md`` and its SR plot beside it
-    (``<out_md stem>_sr.png``); returns ``out_md``."""
+    (``<out_md stem>_sr.png``); returns ``out_md``. Files ``<run_dir>/*.section.md`` are appended as they are."""
     run_dir, out_md = Path(run_dir), Path(out_md)
     routing, insertion = read_records(TABLE_II.jsonl(run_dir)), read_records(TABLE_I.jsonl(run_dir))
     plot = plot_routing(routing, out_md.with_name(f"{out_md.stem}_sr.png"))
@@ -239,6 +239,8 @@ def write_report(run_dir: Path, out_md: Path) -> Path:
     videos = video_table(routing, run_dir, out_md.parent)
     if videos:
         parts += ["### Episode videos", videos]
+    # Other measurements kept beside the runs (e.g. perception accuracy), as written by their commands.
+    parts += [section.read_text(encoding="utf-8").strip() for section in sorted(run_dir.glob("*.section.md"))]
     out_md.parent.mkdir(parents=True, exist_ok=True)
     out_md.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
     return out_md

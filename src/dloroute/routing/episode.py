@@ -53,6 +53,8 @@ class EpisodeConfig:
     """A ``dloroute.planner.vlm.VLMConfig`` for the VLM planners."""
     record_dir: str | None = None
     """Folder for the planner's recorded model calls."""
+    replay_dir: str | None = None
+    """Answer the VLM planner from a recorded run folder instead of the network."""
     video: str | None = None
     """Write an MP4 of the episode here."""
     step_limit: int | None = None
@@ -131,6 +133,7 @@ def run_episode(
         planner = make_planner(
             config.planner, scene_order=scene.order, vlm_config=config.vlm,
             run_dir=Path(config.record_dir) if config.record_dir else None,
+            replay_dir=Path(config.replay_dir) if config.replay_dir else None,
         )
     history: list[StepRecord] = []
     length = failures = failed_decisions = 0
