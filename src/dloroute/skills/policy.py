@@ -17,7 +17,7 @@ import numpy as np
 from dloroute.sim.clip_frame import clip_status
 from dloroute.sim.physics import Physics
 from dloroute.skills.insert_env import MAX_PRIMITIVES, observation_vector
-from dloroute.skills.primitives import InsertParams, insert
+from dloroute.skills.primitives import InsertParams, insert, shielded
 from dloroute.types import ClipSpec, Observation, SkillResult
 
 SHIPPED = "insert_sac.npz"
@@ -55,12 +55,13 @@ class InsertPolicy:
 
     def insert(
         self, physics: Physics, clip: ClipSpec, max_primitives: int = MAX_PRIMITIVES,
-        observe: Callable[[Physics], Observation] | None = None,
+        observe: Callable[[Physics], Observation] | None = None, shield: bool = True,
     ) -> SkillResult:
         """Closed-loop Insert: up to ``max_primitives`` primitives until success or a collision.
 
         ``observe`` supplies the rope and the clip's pose the policy sees (default: the simulator's state;
-        e.g. ``perceive_physics`` for the image pipeline).
+        e.g. ``perceive_physics`` for the image pipeline). ``shield`` keeps the executed grasp and via points
+        clear of the clips (``primitives.shielded``); the policy was trained without it.
         """
         result = None
         sim_time = 0.0
@@ -69,7 +70,8 @@ class InsertPolicy:
             seen_clip = seen.clip(clip.name)
             status = clip_status(seen_clip, seen.rope)
             obs = observation_vector(seen_clip, seen.rope, status.rope_in, t)
-            result = insert(physics, clip, InsertParams.from_action(self.act(obs)))
+            params = InsertParams.from_action(self.act(obs))
+            result = insert(physics, clip, shielded(physics, clip, params) if shield else params)
             sim_time += result.sim_time
             if result.success or result.collision:
                 break

@@ -67,6 +67,27 @@ class InsertParams:
         return cls(index, via)  # type: ignore[arg-type]
 
 
+def shielded(physics: Physics, clip: ClipSpec, params: InsertParams, step: float = 0.002) -> InsertParams:
+    """A safety shield for executing a learned Insert among several clips (deployment, not training).
+
+    The grasp index moves to the nearest particle the fingers can reach without touching a clip, and each
+    via point backs off along the target's -x (clip frame) in ``step`` metres until the fingers' footprint
+    at that pose clears every clip, as a collision-aware motion planner (the paper's MoveIt) would.
+    """
+    rope = physics.rope()
+    order = sorted(range(GRASP_INDICES), key=lambda i: (abs(i - params.grasp_index), i))
+    index = next(
+        (i for i in order if physics.gripper_collision(rope[i, 0], rope[i, 1], physics.rope_yaw_at(i)) is None),
+        params.grasp_index,
+    )
+    vias = []
+    for x, y, yaw in params.via:
+        while x > -WORKSPACE_HALF and physics.gripper_collision(*_world_pose(clip, (x, y, yaw))) is not None:
+            x -= step
+        vias.append((x, y, yaw))
+    return InsertParams(index, (vias[0], vias[1]))
+
+
 def _world_pose(clip: ClipSpec, pose: tuple[float, float, float]) -> tuple[float, float, float]:
     p = to_world_frame(clip, np.array([pose[0], pose[1]]))
     return float(p[0]), float(p[1]), clip.yaw + pose[2]
