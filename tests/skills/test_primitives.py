@@ -84,3 +84,17 @@ def test_heuristic_inserts_a_straight_rope(clip_scene):
     physics = Physics(clip_scene)
     result = heuristic_insert(physics, clip_scene.clips[0])
     assert result.primitives == 2 and result.success
+
+
+def test_shield_backs_vias_off_the_clip_and_moves_the_grasp(clip_scene):
+    physics = Physics(clip_scene)
+    clip = clip_scene.clips[0]
+    risky = InsertParams(2, ((-0.08, 0.0, 0.0), (-0.016, 0.0, 0.4)))  # rotated fingers reach the clip
+    safe = primitives.shielded(physics, clip, risky)
+    assert safe.via[0] == risky.via[0] and -0.03 < safe.via[1][0] < -0.016
+    assert physics.gripper_collision(*primitives._world_pose(clip, safe.via[1])) is None
+    inside = Physics(one_clip_scene(head_x=0.005))  # the head and particle 1 lie in or at the tunnel
+    moved = primitives.shielded(inside, clip, InsertParams(0, risky.via))
+    assert moved.grasp_index > 0
+    p = inside.rope()[moved.grasp_index]
+    assert inside.gripper_collision(p[0], p[1], inside.rope_yaw_at(moved.grasp_index)) is None
