@@ -59,6 +59,9 @@ class EpisodeConfig:
     """Write an MP4 of the episode here."""
     step_limit: int | None = None
     """Override of ``step_limit(n_clips)``."""
+    stop_before_contact: bool = True
+    """Arm motions stop short of touching a clip (``Physics.stop_before_contact``); grasps on a clip still
+    count as collisions. Off: every gripper-clip contact ends the episode as a collision."""
 
 
 class LowLevel:
@@ -118,6 +121,7 @@ def run_episode(
 
     start = time.time()
     physics = Physics(scene)
+    physics.stop_before_contact = config.stop_before_contact
     physics.settle(0.3)
     low_level = LowLevel(config.low_level, config.policy_path)
     perceive = _perceiver(config.perception)

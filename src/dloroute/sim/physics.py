@@ -131,6 +131,10 @@ class Physics:
         self._mocap = int(self.model.body("gripper").mocapid[0])
         self._grasp_eq = [int(self.model.equality(f"grasp{k}").id) for k in range(2)]
         self.grasped: int | None = None
+        self.stop_before_contact = False
+        """When set, a motion whose next set-point would touch a clip stops short (``stalled``) instead of
+        colliding: a contact-aware arm controller for deployment. Training and Table I leave it off, so the
+        learned skill still meets the paper's collision penalty."""
         self.observers: list[Callable[[Physics], None]] = []
         """Called after every CONTROL_STEPS physics steps (e.g. a video recorder)."""
         slide = self.model.jnt_type[self.model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE
@@ -327,6 +331,8 @@ class Physics:
                 x, y, a = x0 + f * (x1 - x0), y0 + f * (y1 - y0), a0 + f * da
                 hit = self.gripper_collision(x, y, a)
                 if hit is not None:
+                    if self.stop_before_contact:
+                        return MotionResult(collision=None, sim_time=self.time - t0, stalled=True)
                     return MotionResult(collision=hit, sim_time=self.time - t0)
                 self._set_gripper(x, y, a)
                 self.step(CONTROL_STEPS)
