@@ -11,7 +11,7 @@ CONFIG = EpisodeConfig(planner="rule_based", low_level="rl")
 
 
 @pytest.mark.parametrize("family", FAMILIES)
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [1, 2])
 def test_rule_based_rl_routes_every_family(family, seed):
     scene = generate_scene(family, seed)
     result = run_episode(scene, CONFIG)
