@@ -87,7 +87,7 @@ def measure(name: str, build) -> str:
     rate = n / (time.perf_counter() - t)
     mujoco.mj_resetData(model, data)
     mocap = model.body("gripper").mocapid[0]
-    x0, x1 = -0.11, -0.016
+    x1 = -0.016
     data.mocap_pos[mocap, 0] = HEAD_X - GRASP * ROPE.spacing
     steps_move = int(abs(x1 - data.mocap_pos[mocap, 0]) / 0.12 / model.opt.timestep)
     start = float(data.mocap_pos[mocap, 0])

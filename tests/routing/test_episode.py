@@ -4,8 +4,8 @@ import dataclasses
 import json
 
 import pytest
-
 from scene_helpers import one_clip_scene
+
 from dloroute.routing.episode import EpisodeConfig, run_episode, write_result
 from dloroute.sim.physics import UnstableSimulation
 from dloroute.sim.scene import generate_scene

@@ -6,9 +6,16 @@ import dataclasses
 import mujoco
 import numpy as np
 import pytest
-
 from scene_helpers import one_clip_scene
-from dloroute.sim.clip_frame import CLIP_DEPTH, POST_WIDTH, clip_status, opening_width, to_clip_frame, to_world_frame
+
+from dloroute.sim.clip_frame import (
+    CLIP_DEPTH,
+    POST_WIDTH,
+    clip_status,
+    opening_width,
+    to_clip_frame,
+    to_world_frame,
+)
 from dloroute.sim.physics import Physics, UnstableSimulation
 from dloroute.sim.scene import generate_scene
 from dloroute.types import FAMILIES

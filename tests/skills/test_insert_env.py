@@ -88,7 +88,7 @@ def test_truncates_after_seven_primitives():
     env = ClipInsertEnv(scale_range=(1.0, 1.0))
     env.reset(seed=5)
     idle = action(7, (-0.08, 0.08, 0), (-0.08, 0.08, 0))  # grasp far back, stay aside: nothing happens
-    for t in range(7):
+    for _ in range(7):
         _, _, terminated, truncated, _ = env.step(idle)
         assert not terminated
     assert truncated

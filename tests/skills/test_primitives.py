@@ -1,8 +1,8 @@
 """Skills on prepared scenes: where the rope actually goes."""
 
 import numpy as np
-
 from scene_helpers import one_clip_scene
+
 from dloroute.sim.clip_frame import clip_status, routed_order, to_clip_frame
 from dloroute.sim.physics import Physics
 from dloroute.skills import primitives
