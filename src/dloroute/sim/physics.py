@@ -39,7 +39,7 @@ MAX_PARTICLE_SPEED = 5.0
 """A rope particle faster than this (m/s) means the simulation blew up."""
 MAX_TWIST_RATE = 500.0
 """A rope twist (hinge) degree of freedom faster than this (rad/s) means the simulation blew up."""
-STALL_LAG = 0.005
+STALL_LAG = 0.004
 """Distance (m) between the gripper and the particle it holds at which the motion stops: the rope is
 jammed (the head pushed into a post, the rope drawn taut around a clip) and a force-limited arm would
 stall rather than force the rope through the clip. Free drags lag about 2.5 mm at 12 cm/s."""
