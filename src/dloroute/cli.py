@@ -203,9 +203,8 @@ def eval_insertion(
     from dloroute.eval.suites import TABLE_I
     from dloroute.skills.trial import insertion_trial
 
-    suite = TABLE_I.select(vlm_configured=False, seeds=list(TABLE_I.seeds[:scenes]))
-    if perception != "oracle":
-        suite = TABLE_I.select(vlm_configured=False, labels=["insert+rl"], seeds=list(TABLE_I.seeds[:scenes]))
+    labels = None if perception == "oracle" else ["insert+rl"]  # perception only changes what the policy sees
+    suite = TABLE_I.select(vlm_configured=False, labels=labels, seeds=list(TABLE_I.seeds[:scenes]))
     trial = functools.partial(insertion_trial, perception=perception)
     _run(suite, out, workers, InsertionTrial(trial), retry_errors)
 

@@ -55,6 +55,14 @@ class ClipSpec:
         return CLIP_COLOURS[self.name]
 
 
+def clip_named(clips: tuple[ClipSpec, ...], name: str) -> ClipSpec:
+    """The clip called ``name``; a KeyError that lists the clips otherwise."""
+    for c in clips:
+        if c.name == name:
+            return c
+    raise KeyError(f"no clip named {name!r}; clips: {[c.name for c in clips]}")
+
+
 @dataclass(frozen=True)
 class RopeSpec:
     """Rope model parameters: length (m), radius (m), mass (kg), Young's modulus (Pa), particle count."""
@@ -90,10 +98,7 @@ class SceneSpec:
     rope: RopeSpec = field(default_factory=RopeSpec)
 
     def clip(self, name: str) -> ClipSpec:
-        for c in self.clips:
-            if c.name == name:
-                return c
-        raise KeyError(f"scene has no clip named {name!r}; clips: {[c.name for c in self.clips]}")
+        return clip_named(self.clips, name)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), indent=2)
@@ -189,10 +194,7 @@ class Observation:
         return self.rope[0]
 
     def clip(self, name: str) -> ClipSpec:
-        for c in self.clips:
-            if c.name == name:
-                return c
-        raise KeyError(f"no clip named {name!r}; clips: {[c.name for c in self.clips]}")
+        return clip_named(self.clips, name)
 
 
 @dataclass(frozen=True)

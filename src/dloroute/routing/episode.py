@@ -184,11 +184,11 @@ def run_episode(
         termination = "unstable" if isinstance(err, SimulationError) else "perception_failure"
         history.append(StepRecord(step=len(history), decision=Decision(call=None, failed=True, error=str(err)), result=None))
     finally:
+        done = routed_order(scene.clips, physics.rope())
         if video:
-            video.close(final_caption=f"{termination}: routed {', '.join(routed_order(scene.clips, physics.rope())) or 'none'}")
+            video.close(final_caption=f"{termination}: routed {', '.join(done) or 'none'}")
         if renderer:
             renderer.close()
-    done = routed_order(scene.clips, physics.rope())
     return EpisodeResult(
         family=scene.family, seed=scene.seed, planner=config.planner, low_level=config.low_level,
         success=termination == "success", termination=termination, clips_routed=_correct_prefix(done, scene.order),
