@@ -127,6 +127,28 @@ def test_rule_flattens_after_two_failed_insertions() -> None:
     assert decide(planner, aligned, recovered, failures=2).call == SkillCall("insert", "red")
 
 
+def test_rule_flattens_after_two_failed_pulls() -> None:
+    planner = started(RuleBasedPlanner(), START)
+    far = straight_rope(RED, (-0.4, 0.2))
+    one = [step(0, "pull", "red", False)]
+    two = [*one, step(1, "pull", "red", False)]
+    assert decide(planner, far, one).call == SkillCall("pull", "red")
+    assert decide(planner, far, two).call == SkillCall("flatten", "red")
+    assert decide(planner, far, [*two, step(2, "flatten", "red", True)]).call == SkillCall("pull", "red")
+
+
+def test_rule_inserts_when_a_pull_did_not_clear_the_front() -> None:
+    a, b = ClipSpec("red", 0.0, 0.0, 0.0), ClipSpec("blue", 0.13, 0.0, 0.0)
+    # Through red, the head 4 cm past its exit: 9 cm in front of blue, aligned, but the front lies in red.
+    rope = polyline_rope([local(a, 0.04), local(a, -0.04), local(a, -1.0)])
+    planner = RuleBasedPlanner()
+    planner.reset("red, then blue", context((a, b), rope).observation)
+    inserted = [step(0, "insert", "red", True)]
+    assert planner.decide(context((a, b), rope, history=inserted)).call == SkillCall("pull", "blue")
+    pulled = [*inserted, step(1, "pull", "blue", False)]
+    assert planner.decide(context((a, b), rope, history=pulled)).call == SkillCall("insert", "blue")
+
+
 def test_rule_pulls_to_the_next_clip_after_a_routed_clip() -> None:
     planner = started(RuleBasedPlanner(), START)
     history = [step(0, "insert", "red", True)]

@@ -57,6 +57,12 @@ def test_step_limit_is_timeout():
     assert result.termination == "timeout" and result.length == 3
 
 
+def test_done_at_the_step_limit_still_succeeds():
+    config = dataclasses.replace(HEURISTIC, step_limit=2)  # the heuristic insertion takes 2 primitives
+    result = run_episode(one_clip_scene(), config, planner=Scripted(INSERT, DONE))
+    assert result.termination == "success" and result.length == 2
+
+
 def test_failed_decisions_end_as_planner_failure():
     failed = Decision(call=None, failed=True, error="answer did not parse")
     result = run_episode(one_clip_scene(), HEURISTIC, planner=Scripted(failed))

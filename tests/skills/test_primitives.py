@@ -1,9 +1,10 @@
 """Skills on prepared scenes: where the rope actually goes."""
 
 import numpy as np
+import pytest
 from scene_helpers import one_clip_scene
 
-from dloroute.sim.clip_frame import clip_status, routed_order, to_clip_frame
+from dloroute.sim.clip_frame import clip_status, front_heading, routed_order, to_clip_frame, yaw_to_clip_frame
 from dloroute.sim.physics import Physics
 from dloroute.skills import primitives
 from dloroute.skills.heuristic import heuristic_insert
@@ -46,19 +47,24 @@ def _length_past(clip, rope) -> float:
     return float(np.sum(np.linalg.norm(np.diff(rope[: k + 1, :2], axis=0), axis=1)))
 
 
-def test_pull_feeds_rope_through_and_brings_the_head_to_the_next_clip():
-    scene = two_clip_scene(np.radians(110))
+@pytest.mark.parametrize("turn_deg", [45, 110])
+def test_pull_feeds_rope_through_and_brings_the_head_to_the_next_clip(turn_deg):
+    scene = two_clip_scene(np.radians(turn_deg))
     physics = Physics(scene)
     a, b = scene.clips
     assert primitives.insert(physics, a, GOOD).success
     before = _length_past(a, physics.rope())
     result = primitives.pull(physics, b)
     rope = physics.rope()
-    assert result.success and not result.collision
+    assert not result.collision
     assert routed_order(scene.clips, rope) == ("red",)  # still through A
     assert _length_past(a, rope) > before + 0.05
     head = to_clip_frame(b, rope[0, :2])
     assert -0.15 < head[0] < 0 and abs(head[1]) < 0.03  # in front of B's opening
+    heading = abs(yaw_to_clip_frame(b, front_heading(rope)))
+    assert heading < np.radians(90)  # pointing into the opening: the planners' "aligned"
+    assert result.success == (heading <= primitives.PULL_MAX_HEADING)
+    assert result.success or turn_deg > 90  # a gentle turn ends aligned; a sharp one may spring back
 
 
 def _lateral_deviation(clip, rope, n=6) -> float:

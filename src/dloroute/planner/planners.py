@@ -26,7 +26,7 @@ import numpy as np
 
 from dloroute.planner.instruction import greedy_order, parse_instruction
 from dloroute.planner.vlm import VLMConfig, VLMPlanner
-from dloroute.sim.clip_frame import routed_order, to_clip_frame, yaw_to_clip_frame
+from dloroute.sim.clip_frame import front_heading, routed_order, to_clip_frame, yaw_to_clip_frame
 from dloroute.types import ClipSpec, Decision, Observation, PlannerContext, SkillCall, SkillName
 
 FRONT_SEGMENT_LENGTH = 0.05
@@ -45,7 +45,7 @@ other clip's centre (the fingers could grasp it there without touching that clip
 GRASP_SPAN = 0.05
 """Arc length (m) from the head where the Insert skill grasps to push (particles 0..2 at 2.5 cm)."""
 RULE_FLATTEN_AFTER = 2
-"""Rule-based planner: Flatten after this many failed insertions in a row."""
+"""Rule-based planner: Flatten after this many failed insertions (or failed pulls) in a row."""
 SYMBOLIC_FLATTEN_AFTER = 3
 """Symbolic planner: Flatten after this many failed insertions in a row (the paper's baseline)."""
 
@@ -89,15 +89,10 @@ class HeadPose:
 def head_pose(clip: ClipSpec, rope: np.ndarray) -> HeadPose:
     """The head of ``rope`` ((n, 2 or 3) world positions (m), head first) in ``clip``'s frame.
 
-    The heading is that of the vector from the first particle at least FRONT_SEGMENT_LENGTH of arc
-    behind the head (or the tail) to the head.
+    The heading is ``front_heading`` over FRONT_SEGMENT_LENGTH of arc.
     """
-    xy = np.asarray(rope, dtype=float)[:, :2]
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
-    k = int(min(np.searchsorted(arc, FRONT_SEGMENT_LENGTH), len(xy) - 1))
-    front = xy[0] - xy[k]
-    local = to_clip_frame(clip, xy[0])
-    heading = yaw_to_clip_frame(clip, math.atan2(front[1], front[0]))
+    local = to_clip_frame(clip, np.asarray(rope, dtype=float)[0, :2])
+    heading = yaw_to_clip_frame(clip, front_heading(rope, FRONT_SEGMENT_LENGTH))
     return HeadPose(float(local[0]), float(local[1]), float(heading))
 
 
@@ -128,6 +123,17 @@ def failures_since_recovery(ctx: PlannerContext) -> int:
             break
         n += 1
     return min(n, ctx.consecutive_failures)
+
+
+def failed_pulls_in_a_row(ctx: PlannerContext) -> int:
+    """Pulls at the end of the history that did not leave the head in front of the target, aligned."""
+    n = 0
+    for rec in reversed(ctx.history):
+        call = rec.decision.call
+        if call is None or call.skill != "pull" or rec.result is None or rec.result.success:
+            break
+        n += 1
+    return n
 
 
 def _last_skill(ctx: PlannerContext) -> SkillName | None:
@@ -221,7 +227,7 @@ class RuleBasedPlanner:
 
     1. every clip routed: done if the routed order is the instructed one, else a failed decision (no
        skill can undo a routing); never done while a clip is unrouted;
-    2. RULE_FLATTEN_AFTER failed insertions in a row: Flatten;
+    2. RULE_FLATTEN_AFTER failed insertions, or failed pulls, in a row: Flatten;
     3. head inside the target's opening, or in its insertion-feasible region and aligned with the rope's
        front clear of the other clips (``front_clear``): Insert; aligned but not clear: Pull;
     4. head badly placed near the target (in the region but misaligned, or beside/behind the clip) and
@@ -252,12 +258,17 @@ class RuleBasedPlanner:
         failures = failures_since_recovery(ctx)
         if failures >= RULE_FLATTEN_AFTER:
             return _call("flatten", target, f"{failures} failed insertions into {target} in a row: flatten")
+        pulls = failed_pulls_in_a_row(ctx)
+        if pulls >= RULE_FLATTEN_AFTER:
+            return _call("flatten", target, f"{pulls} pulls in a row left the head misplaced: flatten")
         pose = head_pose(obs.clip(target), obs.rope)
         where = _describe(target, pose)
         if ctx.status(target).rope_in:
             return _call("insert", target, f"{where}: the head is inside the opening, insert")
         if pose.in_region and pose.aligned and front_clear(obs, target):
             return _call("insert", target, f"{where}: in the feasible region and aligned, insert")
+        if pose.in_region and pose.aligned and pulls:
+            return _call("insert", target, f"{where}: aligned, and the last pull did not clear the front, insert")
         if pose.in_region and pose.aligned:
             return _call("pull", target, f"{where}: aligned, but the front still lies in another clip, pull")
         if (pose.in_region or pose.beside_or_behind) and _last_skill(ctx) != "flatten":

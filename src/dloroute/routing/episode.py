@@ -1,8 +1,9 @@
 """The routing loop: observe -> planner decision -> skill -> termination checks.
 
 An episode succeeds when the planner declares the task done and every clip is routed in the
-instruction's order. It fails on a gripper-clip collision, at the step limit (timeout), when the planner
-declares done with clips unrouted or out of order (early termination), after ``MAX_FAILED_DECISIONS``
+instruction's order. It fails on a gripper-clip collision, when the planner asks for a skill once the
+step limit's primitives are spent (timeout; declaring done then still succeeds), when it declares done
+with clips unrouted or out of order (early termination), after ``MAX_FAILED_DECISIONS``
 failed decisions in a row (planner failure), or when the simulation becomes unstable. ``length`` counts
 pick-and-place primitives, as the paper's episode length. With image perception, a scene the perceiver
 cannot measure ends the episode as ``perception_failure``.
@@ -161,6 +162,8 @@ def run_episode(
             elif decision.done or decision.call is None:
                 done = routed_order(scene.clips, physics.rope())
                 termination = "success" if done == scene.order else "early_termination"
+            elif length >= limit:
+                termination = "timeout"  # the planner asked for one more primitive than the limit allows
             else:
                 failed_decisions = 0
                 if video:
@@ -173,8 +176,6 @@ def run_episode(
                     failures = 0
                 if result.collision:
                     termination = "collision"
-                elif length >= limit:
-                    termination = "timeout"
             record = StepRecord(step=len(history), decision=decision, result=result)
             history.append(record)
             observation = perceive(physics, renderer)

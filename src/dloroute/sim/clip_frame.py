@@ -58,6 +58,16 @@ def wrap_angle(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+def front_heading(rope: np.ndarray, span: float = 0.05) -> float:
+    """World yaw (rad) of the rope's front: the direction from the first particle at least ``span`` metres
+    of arc behind the head (or the tail) to the head. ``rope``: (n, 2 or 3) world positions (m), head first."""
+    xy = np.asarray(rope, dtype=float)[:, :2]
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    k = int(min(np.searchsorted(arc, span), len(xy) - 1))
+    d = xy[0] - xy[k]
+    return float(np.arctan2(d[1], d[0]))
+
+
 def _face_crossings(local: np.ndarray, x_face: float, half_width: float) -> list[tuple[float, int]]:
     """Rope segments crossing the line x = x_face within |y| < half_width (clip frame).
 

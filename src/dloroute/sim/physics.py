@@ -158,12 +158,7 @@ class Physics:
         return float(self.model.opt.timestep)
 
     def rope(self) -> np.ndarray:
-        """(n, 3) rope particle positions (m, world), head first, at the current time.
-
-        ``mj_step`` leaves body positions from before its last integration; recomputing the kinematics
-        (positions only) makes them current. Stepping never reads them, so this changes no trajectory.
-        """
-        mujoco.mj_kinematics(self.model, self.data)
+        """(n, 3) rope particle positions (m, world), head first, at the current time (see ``step``)."""
         return rope_model.particle_positions(self.data, self._particles)
 
     def rope_velocities(self) -> np.ndarray:
@@ -189,10 +184,16 @@ class Physics:
 
     # ----------------------------------------------------------------- stepping
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` physics steps, checking stability every CONTROL_STEPS steps."""
+        """Advance ``n`` physics steps, checking stability every CONTROL_STEPS steps.
+
+        ``mj_step`` leaves body positions from before its last integration; recomputing the kinematics
+        (positions only) after it makes every read (guards, stall test, observers, ``rope()``) current, so
+        an observer that renders (and recomputes them itself) cannot change a trajectory.
+        """
         while n > 0:
             k = min(n, CONTROL_STEPS)
             mujoco.mj_step(self.model, self.data, nstep=k)
+            mujoco.mj_kinematics(self.model, self.data)
             self.check()
             for observer in self.observers:
                 observer(self)

@@ -3,7 +3,9 @@
 Every primitive is one pick-and-place: grasp a rope particle, drag it through via points in the table
 plane, release, let the rope settle. Insert's via points are given in the target clip's frame; Pull and
 Flatten are fixed primitives that move the rope's head to the target clip's approach pose (a point on
-the clip's axis in front of the entry face, the rope pointing along the axis) along a collision-free path.
+the clip's axis in front of the entry face, the rope pointing along the axis) along a collision-free path:
+Pull leads the head along a smooth curve that the trailing rope follows (feeding rope through the clips
+behind it), Flatten drags it in straight strokes that straighten the front segment.
 """
 
 from __future__ import annotations
@@ -14,11 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from dloroute.sim.clip_frame import (
+    CLIP_DEPTH,
+    POST_WIDTH,
     SUCCESS_DISTANCE,
     clip_status,
-    routed_order,
+    front_heading,
+    opening_width,
     to_clip_frame,
     to_world_frame,
+    yaw_to_clip_frame,
 )
 from dloroute.sim.physics import Physics
 from dloroute.types import ClipSpec, SkillResult
@@ -32,11 +38,24 @@ APPROACH_X = -0.075
 SETTLE_TIME = 0.3
 """Rest (s) after a release before the rope is measured."""
 AXIAL_STROKE = 0.12
-"""Length (m) of the last stroke of Pull and Flatten, along the target's axis: the rope trailing the head
-lines up with the axis over this length."""
-FEED_REACH = 0.12
-"""Pull feeds rope (its first stroke) only when the gripper is within this distance (m) past the exit of the
-last routed clip, near its axis; a head already farther on goes straight to the target."""
+"""Length (m) of Flatten's last stroke, along the target's axis: the front segment lines up with the axis
+over this length."""
+PULL_AXIAL = 0.05
+"""Length (m) of the straight end of Pull's path, along the target's axis. Longer straight ends need
+sharper turns before them, which draw the rope around clip corners (on Table II's seeds 0-29, 0.08-0.12
+routed fewer episodes and drew ropes through posts)."""
+PULL_TANGENT = 0.7
+"""Tangent length of Pull's Hermite curve segments, as a fraction of each segment's chord."""
+PULL_MAX_HEADING = math.radians(45)
+"""A Pull succeeds when it leaves the head in front of the target with the front segment within this angle
+(rad) of the target's axis."""
+PATH_STEP = 0.01
+"""Spacing (m) of the points sampled on Pull's curve."""
+PATH_MARGIN = 0.015
+"""Pull's curve keeps this distance (m) from every clip's footprint."""
+LEAD_OUT = 0.04
+"""Length (m) of the straight lead-out ahead of the head that Pull tries when a curve starting at once
+would bring the fingers against a clip."""
 RETREAT = 0.07
 """A gripper starting closer than this (m) to a clip's centre first moves straight away from it to this
 distance, so that the planned path starts clear of the clip."""
@@ -171,33 +190,28 @@ def _first_free_particle(physics: Physics) -> int | None:
     return None
 
 
-def reposition(physics: Physics, target: ClipSpec, *, away_from: ClipSpec | None, skill: str) -> SkillResult:
-    """Grasp near the head and bring the head to ``target``'s approach pose (Pull and Flatten).
+def flatten(physics: Physics, target: ClipSpec) -> SkillResult:
+    """Flatten: straighten the front segment and lay it along ``target``'s axis in front of it.
 
-    With ``away_from`` (Pull after a clip) and the head just out of it, the first stroke drags the head 6 cm
-    further out along that clip's axis, feeding rope through it. Without it (Flatten), the first stroke draws the head back
-    along the target's axis, which straightens the front segment before it is laid in front of the clip.
-    The primitive succeeds when it ends without collision with the head in front of the target.
+    Grasp the graspable particle nearest the head, step straight away from a clip it lies against, then
+    drag it in straight strokes (around the target if needed) to the target's axis, ending with an axial
+    stroke of up to AXIAL_STROKE to the approach pose. Succeeds when it ends without collision with the
+    head in front of the target.
     """
     t0 = physics.time
     index = _first_free_particle(physics)
     if index is None:
-        return SkillResult(skill=skill, clip=target.name, success=False, reason="no graspable particle near the head")
+        return SkillResult(skill="flatten", clip=target.name, success=False, reason="no graspable particle near the head")
     physics.grasp(index)
     back = index * physics.scene.rope.spacing  # the head leads the gripper by this much (m)
-    x, y, _ = physics.gripper_pose()
+    x, y, yaw = physics.gripper_pose()
     start = np.array([x, y])
     strokes: list[tuple[float, float, float]] = []
-    local = to_clip_frame(away_from, start) if away_from is not None else None
-    if local is not None and 0.0 < local[0] < FEED_REACH and abs(local[1]) < 0.04:  # just out of that clip
-        out = to_world_frame(away_from, np.array([local[0] + 0.06, 0.0]))
-        strokes.append((float(out[0]), float(out[1]), away_from.yaw))
-        start = out
     near = [c for c in physics.scene.clips if np.hypot(start[0] - c.x, start[1] - c.y) < RETREAT]
     if near:  # first step straight away from the clip the head lies against
         away = start - np.array([near[0].x, near[0].y])
         start = np.array([near[0].x, near[0].y]) + RETREAT * away / max(np.linalg.norm(away), 1e-9)
-        strokes.append((float(start[0]), float(start[1]), physics.gripper_pose()[2]))
+        strokes.append((float(start[0]), float(start[1]), yaw))
     path = _path_to_approach(physics, start, target)
     for p in path[:-1]:
         strokes.append((float(p[0]), float(p[1]), target.yaw))
@@ -209,16 +223,101 @@ def reposition(physics: Physics, target: ClipSpec, *, away_from: ClipSpec | None
         head = to_clip_frame(target, physics.rope()[0, :2])
         return bool(head[0] < 0 and abs(head[1]) < 0.03)
 
-    return _finish(physics, skill, target, hit, t0, success=placed)
+    return _finish(physics, "flatten", target, hit, t0, success=placed)
+
+
+def hermite_path(points: list[np.ndarray], start_yaw: float, end_yaw: float, step: float = PATH_STEP) -> np.ndarray:
+    """A smooth curve (m, world xy, shape (k, 2)) through ``points``, leaving the first along ``start_yaw`` and
+    arriving at the last along ``end_yaw`` (rad); inner points get Catmull-Rom tangents. Cubic Hermite
+    segments with tangents PULL_TANGENT x chord, sampled about every ``step`` metres."""
+    pts = [np.asarray(p, dtype=float) for p in points]
+    tangents = [np.array([math.cos(start_yaw), math.sin(start_yaw)])]
+    for a, b in zip(pts[:-2], pts[2:]):
+        tangents.append((b - a) / max(float(np.linalg.norm(b - a)), 1e-9))
+    tangents.append(np.array([math.cos(end_yaw), math.sin(end_yaw)]))
+    out = [pts[0][None]]
+    for (p0, m0), (p1, m1) in zip(zip(pts, tangents), zip(pts[1:], tangents[1:])):
+        chord = float(np.linalg.norm(p1 - p0))
+        s = np.linspace(0.0, 1.0, max(3, int(chord / step) + 1))[1:, None]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        k = PULL_TANGENT * chord
+        out.append(h00 * p0 + h10 * k * m0 + h01 * p1 + h11 * k * m1)
+    return np.concatenate(out)
+
+
+def _path_clear(physics: Physics, path: np.ndarray) -> bool:
+    """True when every point of ``path`` (m, world xy) keeps PATH_MARGIN from every clip's footprint."""
+    for c in physics.scene.clips:
+        local = to_clip_frame(c, path)
+        half_span = opening_width(c) / 2 + POST_WIDTH
+        inside = (np.abs(local[:, 0]) < CLIP_DEPTH / 2 + PATH_MARGIN) & (np.abs(local[:, 1]) < half_span + PATH_MARGIN)
+        if inside.any():
+            return False
+    return True
+
+
+def _follow(path: np.ndarray, back: float) -> list[tuple[float, float, float]]:
+    """Gripper poses (x, y, yaw; m, rad, world) that put a point ``back`` metres ahead of the gripper, along
+    its yaw, on each point of ``path`` after the first, the yaw along the path's tangent."""
+    tangent = np.gradient(path, axis=0)
+    yaws = np.arctan2(tangent[:, 1], tangent[:, 0])
+    return [
+        (float(p[0] - back * math.cos(a)), float(p[1] - back * math.sin(a)), float(a))
+        for p, a in zip(path[1:], yaws[1:])
+    ]
+
+
+def _lead_strokes(physics: Physics, target: ClipSpec, back: float) -> list[tuple[float, float, float]]:
+    """Gripper poses for Pull, holding the rope ``back`` metres behind the head (m, rad, world).
+
+    The head's path is a Hermite curve from the head, along its front segment, to PULL_AXIAL before the
+    approach point on the target's axis, then straight along the axis to it. Candidates: the direct curve,
+    then curves through via points beside the target (clip frame y = +-DETOUR), each also with a first
+    lead-out of LEAD_OUT straight ahead of the head (clear of a clip the head just left). The first whose
+    head path keeps clear of every clip (``_path_clear``, after its first few points) and whose gripper
+    poses touch no clip wins, else the direct curve.
+    """
+    rope = physics.rope()
+    head, yaw = rope[0, :2], front_heading(rope)
+    goal = to_world_frame(target, np.array([APPROACH_X, 0.0]))
+    far = to_world_frame(target, np.array([APPROACH_X - PULL_AXIAL, 0.0]))
+    axial = np.linspace(far, goal, max(2, round(PULL_AXIAL / PATH_STEP) + 1))[1:]
+    beside = [[(-0.02, side * DETOUR)] for side in (1.0, -1.0)] + [
+        [(0.08, side * DETOUR), (-0.04, side * DETOUR)] for side in (1.0, -1.0)
+    ]
+    lead_out = head + LEAD_OUT * np.array([math.cos(yaw), math.sin(yaw)])
+    candidates = []
+    for first in ([head], [head, lead_out]):
+        for via in [np.zeros((0, 2)), *beside]:
+            curve = hermite_path([*first, *to_world_frame(target, np.array(via)), far], yaw, target.yaw)
+            path = np.concatenate([curve, axial])
+            strokes = _follow(path, back)
+            if _path_clear(physics, path[3:]) and all(physics.gripper_collision(*g) is None for g in strokes):
+                return strokes
+            candidates.append(strokes)
+    return candidates[0]
 
 
 def pull(physics: Physics, target: ClipSpec) -> SkillResult:
-    """Pull: feed rope out of the last clip routed and bring the head in front of ``target``."""
-    done = routed_order(physics.scene.clips, physics.rope())
-    last = physics.scene.clip(done[-1]) if done else None
-    return reposition(physics, target, away_from=last, skill="pull")
+    """Pull: lead the head along a smooth curve to ``target``'s approach pose (``_lead_strokes``).
 
+    The gripper holds the graspable particle nearest the head and follows the head's path, turned along
+    its tangent, so the rope trails along the curve and slides through the clips behind it as it goes.
+    Succeeds when it ends without collision with the head in front of the target and its front segment
+    within PULL_MAX_HEADING of the axis.
+    """
+    t0 = physics.time
+    index = _first_free_particle(physics)
+    if index is None:
+        return SkillResult(skill="pull", clip=target.name, success=False, reason="no graspable particle near the head")
+    strokes = _lead_strokes(physics, target, back=index * physics.scene.rope.spacing)
+    physics.grasp(index)
+    hit = physics.move(strokes).collision
 
-def flatten(physics: Physics, target: ClipSpec) -> SkillResult:
-    """Flatten: straighten the front segment and lay it along ``target``'s axis in front of it."""
-    return reposition(physics, target, away_from=None, skill="flatten")
+    def placed(status) -> bool:
+        rope = physics.rope()
+        head = to_clip_frame(target, rope[0, :2])
+        aligned = abs(yaw_to_clip_frame(target, front_heading(rope))) <= PULL_MAX_HEADING
+        return bool(head[0] < 0 and abs(head[1]) < 0.03 and aligned)
+
+    return _finish(physics, "pull", target, hit, t0, success=placed)
