@@ -145,11 +145,14 @@ def routing_config(row, family: str, seed: int, run_dir: Path, videos: bool = Fa
 
 
 def _run(suite, run_dir: Path, workers: int, episode_fn, retry_errors: bool) -> None:
-    from dloroute.eval.runner import run_suite
+    from dloroute.eval.runner import RunInProgress, run_suite
 
     try:
         stats = run_suite(suite.jobs(), suite.jsonl(run_dir), workers=workers, episode_fn=episode_fn,
                           retry_errors=retry_errors)
+    except RunInProgress as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
     except KeyboardInterrupt:
         typer.echo("interrupted: finished episodes are saved; rerun the same command to resume")
         raise typer.Exit(130) from None

@@ -25,6 +25,13 @@ def slow_episode(job: Job) -> dict:
     return fake_episode(job)
 
 
+def pid_recording_episode(job: Job) -> dict:
+    """A slow 'episode' that first leaves its worker's pid in the folder named by DLOROUTE_TEST_PID_DIR."""
+    (Path(os.environ["DLOROUTE_TEST_PID_DIR"]) / str(os.getpid())).touch()
+    time.sleep(0.5)
+    return fake_episode(job)
+
+
 def raising_episode(job: Job) -> dict:
     if job.seed == 1:
         raise RuntimeError("boom")
@@ -49,6 +56,6 @@ def fake_run_episode(scene, config: dict) -> EpisodeResult:
                          wall_time=0.01, routed_order=scene.order)
 
 
-def run_small(out_jsonl: str) -> None:
-    """The run the kill-and-resume test starts in a subprocess and kills."""
-    run_suite(SMALL.jobs(), Path(out_jsonl), workers=2, episode_fn=slow_episode, progress=False)
+def run_small(out_jsonl: str, episode: str = "slow_episode") -> None:
+    """The run the kill tests start in a subprocess and kill; ``episode`` names a job function here."""
+    run_suite(SMALL.jobs(), Path(out_jsonl), workers=2, episode_fn=globals()[episode], progress=False)

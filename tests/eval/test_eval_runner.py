@@ -10,7 +10,16 @@ from pathlib import Path
 import eval_fakes
 import pytest
 
-from dloroute.eval.runner import RoutingEpisode, read_records, repair, resolve, run_suite
+from dloroute.eval.runner import (
+    PARENT_POLL_S,
+    RoutingEpisode,
+    RunInProgress,
+    _exclusive,
+    read_records,
+    repair,
+    resolve,
+    run_suite,
+)
 from dloroute.eval.suites import Suite, record_key, row
 
 SUITE = Suite("routing", rows=(row("fixed_order", "rl"), row("rule_based", "heuristic")),
@@ -81,6 +90,51 @@ def test_killed_run_resumes_without_losing_or_repeating(tmp_path):
     assert keys(out) == Counter(j.key for j in eval_fakes.SMALL.jobs())
     assert read_records(out)[: len(survivors)] == survivors
     assert stats.skipped == len(survivors) and stats.ran == len(eval_fakes.SMALL.jobs()) - len(survivors)
+
+
+def test_a_second_run_on_the_same_file_is_refused(tmp_path):
+    out = tmp_path / "routing.jsonl"
+    with _exclusive(out):  # as a run in another process would hold it
+        with pytest.raises(RunInProgress, match=f"pid {os.getpid()}"):
+            run_suite(SUITE.jobs(), out, workers=1, episode_fn=eval_fakes.fake_episode, progress=False)
+    assert read_records(out) == []
+    stats = run_suite(SUITE.jobs(), out, workers=1, episode_fn=eval_fakes.fake_episode, progress=False)
+    assert stats.ran == len(SUITE.jobs())
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return not Path(f"/proc/{pid}/stat").exists() or Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+
+
+def test_workers_exit_when_the_runner_is_killed(tmp_path):
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    env = {**os.environ, "DLOROUTE_TEST_PID_DIR": str(pids),
+           "PYTHONPATH": os.pathsep.join([str(Path(eval_fakes.__file__).parent), os.environ.get("PYTHONPATH", "")])}
+    code = f"import eval_fakes; eval_fakes.run_small({str(tmp_path / 'routing.jsonl')!r}, 'pid_recording_episode')"
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 30
+        while len(list(pids.iterdir())) < 2:
+            assert proc.poll() is None and time.monotonic() < deadline, "runner ended before it was killed"
+            time.sleep(0.05)
+        workers = [int(p.name) for p in pids.iterdir()]
+        assert all(_alive(w) for w in workers)
+        os.kill(proc.pid, signal.SIGKILL)  # the runner only: its workers are orphaned
+        proc.wait()
+        deadline = time.monotonic() + 10 * PARENT_POLL_S
+        while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(w) for w in workers), "orphaned workers kept running"
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
 
 
 def test_routing_episode_builds_scene_and_config(tmp_path):

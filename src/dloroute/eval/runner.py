@@ -3,6 +3,9 @@
 The parent process alone writes the JSONL file: each record is appended, flushed and fsynced as soon as its
 episode finishes, so a killed run loses at most the episodes still in flight. ``run_suite`` resumes: jobs
 whose key is already in the file are skipped, and a torn last line (a write cut by a kill) is cut off first.
+A run holds an exclusive lock on ``<file>.lock`` (released by the OS however the run ends), so a second run
+on the same file stops with ``RunInProgress`` instead of interleaving records; workers exit on their own
+when the process that started them is gone (e.g. killed with SIGKILL), so no orphan keeps computing.
 
 Workers call a *job function* ``fn(job) -> Mapping`` that returns the episode's record fields.
 ``RoutingEpisode`` (Table II) and ``InsertionTrial`` (Table I) adapt the episode functions to it; any
@@ -13,16 +16,19 @@ the job that kills a worker alone is recorded as an error too.
 
 from __future__ import annotations
 
+import fcntl
 import importlib
 import json
 import multiprocessing
 import os
+import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +49,45 @@ from dloroute.sim.scene import generate_scene
 JobFn = Callable[[Job], Mapping[str, Any]]
 DEFAULT_EPISODE_FN = "dloroute.routing.episode:run_episode"
 _CONTEXT = multiprocessing.get_context("spawn")
+
+
+PARENT_POLL_S = 1.0
+"""How often (s) a worker checks that the process that started it is still alive."""
+
+
+class RunInProgress(RuntimeError):
+    """Another process is running an evaluation into the same JSONL file."""
+
+
+@contextmanager
+def _exclusive(out_jsonl: Path) -> Iterator[None]:
+    """Hold an exclusive advisory lock on ``<out_jsonl>.lock`` (holding the owner's pid) for the block."""
+    lock_path = out_jsonl.with_name(out_jsonl.name + ".lock")
+    with lock_path.open("a+", encoding="utf-8") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.seek(0)
+            owner = lock.read().strip() or "unknown"
+            raise RunInProgress(
+                f"another run (pid {owner}) is writing {out_jsonl}; wait for it to end or stop it, then rerun "
+                "to resume"
+            ) from None
+        lock.truncate(0)
+        lock.write(str(os.getpid()))
+        lock.flush()
+        yield
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker once ``parent`` (the evaluation process) is gone."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 def resolve(ref: str | Callable) -> Callable:
@@ -159,11 +204,19 @@ def run_suite(
 ) -> RunStats:
     """Run every job not yet recorded in ``out_jsonl`` on ``workers`` processes, appending one record per
     episode. ``episode_fn`` is a job function (see the module docstring). ``retry_errors`` first removes the
-    file's error records, so their jobs run again (e.g. after fixing a missing policy file)."""
+    file's error records, so their jobs run again (e.g. after fixing a missing policy file). Raises
+    ``RunInProgress`` when another run holds the file."""
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     out_jsonl = Path(out_jsonl)
     out_jsonl.parent.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out_jsonl):
+        return _run_locked(jobs, out_jsonl, workers, episode_fn, progress, retry_errors)
+
+
+def _run_locked(
+    jobs: Iterable[Job], out_jsonl: Path, workers: int, episode_fn: JobFn, progress: bool, retry_errors: bool
+) -> RunStats:
     repair(out_jsonl)
     if retry_errors:
         drop_errors(out_jsonl)
@@ -208,7 +261,8 @@ def _execute(queue: deque[Job], episode_fn: JobFn, workers: int, write: Callable
     """Run jobs from ``queue`` with at most ``workers`` in flight, passing each result to ``write``. If the pool
     breaks, return the jobs that were in flight (unstarted ones stay in ``queue``); else return []."""
     broken: list[Job] = []
-    with ProcessPoolExecutor(workers, mp_context=_CONTEXT) as pool:
+    with ProcessPoolExecutor(workers, mp_context=_CONTEXT, initializer=_exit_with_parent,
+                             initargs=(os.getpid(),)) as pool:
         running: dict = {}
         while (queue or running) and not broken:
             while queue and len(running) < workers:
