@@ -35,8 +35,7 @@ import numpy as np
 STAGES = ("straight", "one_clip", "two_clips", "crossed")
 TARGETS = {"clip_mm": 3.0, "yaw_deg": 3.0, "colour": 1.0, "rope_mean_mm": 5.0, "head_mm": 5.0}
 DRAG_REST = 1.0
-"""Rest (s) after the sideways drag: 0.3 s after that release the head can still move at ~2 m/s, and the
-renderer draws the newest state while Physics.rope() lags it by one step (mm apart at that speed)."""
+"""Rest (s) after the sideways drag: 0.3 s after that release the head can still move at ~2 m/s."""
 MATCH_MM = 10.0
 """A perceived clip within this distance (mm) of the true clip of its colour counts as a correct colour."""
 

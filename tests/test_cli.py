@@ -21,6 +21,15 @@ def test_route_writes_result_and_video(tmp_path):
     assert "success" in res.output
 
 
+def test_route_reports_the_step_limit(tmp_path):
+    res = runner.invoke(app, ["route", "--family", "implicit", "--seed", "1", "--low-level", "heuristic",
+                              "--step-limit", "1", "--no-video", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["termination"] == "timeout" and result["length"] == 2  # one heuristic insertion: 2 primitives
+    assert "step limit reached" in res.output
+
+
 def test_unknown_colour_in_instruction_is_a_clear_error(tmp_path):
     res = runner.invoke(app, ["route", "--family", "fixed-attribute", "--seed", "0", "--low-level", "heuristic",
                               "--instruction", "Route the rope through the orange clip.", "--out", str(tmp_path)])

@@ -84,6 +84,7 @@ def route(
     vlm_replay: Path | None = typer.Option(None, help="Replay the VLM's answers from a recorded vlm_calls folder (offline)."),
     out: Path = typer.Option(Path("runs/route"), help="Folder for episode.mp4, result.json, scene.json."),
     video: bool = typer.Option(True, help="Write the episode video."),
+    step_limit: int | None = typer.Option(None, help="Pick-and-place primitives allowed; default 8 x clips + 6."),
 ) -> None:
     """Run one routing episode: print each step, write a video and a JSON result."""
     import dataclasses
@@ -104,11 +105,14 @@ def route(
     config = EpisodeConfig(
         planner=planner, low_level=low_level, perception=perception, policy_path=str(policy) if policy else None,
         vlm=vlm, record_dir=str(out / "vlm_calls"), replay_dir=str(vlm_replay) if vlm_replay else None, video=str(out / "episode.mp4") if video else None,
+        step_limit=step_limit,
     )
 
     def show(record, _observation) -> None:
         d, r = record.decision, record.result
-        if d.call:
+        if d.call and r is None:
+            console.print(f"  {record.step:>2}  {d.call.skill:<8}{d.call.clip:<8}[red]not run: step limit reached[/]")
+        elif d.call:
             outcome = "[red]collision[/]" if r.collision else ("[green]ok[/]" if r.success else "[yellow]not yet[/]")
             console.print(f"  {record.step:>2}  {d.call.skill:<8}{d.call.clip:<8}{outcome}  {d.reasoning}")
         else:
