@@ -8,8 +8,8 @@ Offline planners read the observed state (``ctx.observation`` and ``ctx.statuses
 - :class:`SymbolicPlanner`: the paper's symbolic baseline: greedy next-closest order from the head,
   Insert when the head is in front of the target (else Pull), Flatten after three failed insertions.
 - :class:`RuleBasedPlanner`: the project default: order from the instruction, Insert only when the head
-  is in the insertion-feasible region and aligned, Flatten when insertions keep failing or the head is
-  badly placed, done only when every clip is routed in the instructed order.
+  is in the insertion-feasible region and aligned, Flatten when insertions or pulls keep failing or the
+  head is badly placed, done only when every clip is routed in the instructed order.
 
 Geometry is measured in the target clip's frame (m, rad): +x is the insertion direction, the entry face
 is at x = -CLIP_DEPTH/2.
@@ -229,7 +229,8 @@ class RuleBasedPlanner:
        skill can undo a routing); never done while a clip is unrouted;
     2. RULE_FLATTEN_AFTER failed insertions, or failed pulls, in a row: Flatten;
     3. head inside the target's opening, or in its insertion-feasible region and aligned with the rope's
-       front clear of the other clips (``front_clear``): Insert; aligned but not clear: Pull;
+       front clear of the other clips (``front_clear``): Insert; aligned but not clear: Pull, or Insert
+       when the last Pull failed (pulling does not free a front that lies in a clip just left);
     4. head badly placed near the target (in the region but misaligned, or beside/behind the clip) and
        the previous skill was not a Flatten: Flatten;
     5. otherwise Pull toward the target (after the previous clip of the order is routed, or for the
