@@ -190,6 +190,15 @@ def _first_free_particle(physics: Physics) -> int | None:
     return None
 
 
+def _placed(physics: Physics, target: ClipSpec, max_heading: float = math.pi) -> bool:
+    """The head lies in front of ``target``'s entry, within 3 cm of its axis, and the rope's front points
+    within ``max_heading`` (rad) of the axis (target's clip frame)."""
+    rope = physics.rope()
+    head = to_clip_frame(target, rope[0, :2])
+    aligned = abs(yaw_to_clip_frame(target, front_heading(rope))) <= max_heading
+    return bool(head[0] < 0 and abs(head[1]) < 0.03 and aligned)
+
+
 def flatten(physics: Physics, target: ClipSpec) -> SkillResult:
     """Flatten: straighten the front segment and lay it along ``target``'s axis in front of it.
 
@@ -219,11 +228,7 @@ def flatten(physics: Physics, target: ClipSpec) -> SkillResult:
     strokes.append((float(goal[0]), float(goal[1]), target.yaw))
     hit = physics.move(strokes).collision
 
-    def placed(status) -> bool:
-        head = to_clip_frame(target, physics.rope()[0, :2])
-        return bool(head[0] < 0 and abs(head[1]) < 0.03)
-
-    return _finish(physics, "flatten", target, hit, t0, success=placed)
+    return _finish(physics, "flatten", target, hit, t0, success=lambda _: _placed(physics, target))
 
 
 def hermite_path(points: list[np.ndarray], start_yaw: float, end_yaw: float, step: float = PATH_STEP) -> np.ndarray:
@@ -286,7 +291,7 @@ def _lead_strokes(physics: Physics, target: ClipSpec, back: float) -> list[tuple
         [(0.08, side * DETOUR), (-0.04, side * DETOUR)] for side in (1.0, -1.0)
     ]
     lead_out = head + LEAD_OUT * np.array([math.cos(yaw), math.sin(yaw)])
-    candidates = []
+    fallback = None
     for first in ([head], [head, lead_out]):
         for via in [np.zeros((0, 2)), *beside]:
             curve = hermite_path([*first, *to_world_frame(target, np.array(via)), far], yaw, target.yaw)
@@ -294,8 +299,8 @@ def _lead_strokes(physics: Physics, target: ClipSpec, back: float) -> list[tuple
             strokes = _follow(path, back)
             if _path_clear(physics, path[3:]) and all(physics.gripper_collision(*g) is None for g in strokes):
                 return strokes
-            candidates.append(strokes)
-    return candidates[0]
+            fallback = fallback or strokes
+    return fallback
 
 
 def pull(physics: Physics, target: ClipSpec) -> SkillResult:
@@ -314,10 +319,6 @@ def pull(physics: Physics, target: ClipSpec) -> SkillResult:
     physics.grasp(index)
     hit = physics.move(strokes).collision
 
-    def placed(status) -> bool:
-        rope = physics.rope()
-        head = to_clip_frame(target, rope[0, :2])
-        aligned = abs(yaw_to_clip_frame(target, front_heading(rope))) <= PULL_MAX_HEADING
-        return bool(head[0] < 0 and abs(head[1]) < 0.03 and aligned)
-
-    return _finish(physics, "pull", target, hit, t0, success=placed)
+    return _finish(
+        physics, "pull", target, hit, t0, success=lambda _: _placed(physics, target, max_heading=PULL_MAX_HEADING)
+    )
